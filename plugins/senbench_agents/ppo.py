@@ -1,0 +1,127 @@
+"""PPO (Schulman et al. 2017) from Stable-Baselines3, on the true or encoded state.
+
+senbench adds only the glue: a vectorised training env built from the cell's observation
+pipeline, a callback that reports frames and episodes through the one recorder protocol
+(and stops at the budget, exactly), and deterministic actions for evaluation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from senbench import AgentContext, AgentDefaults, AgentSpec, Recorder
+
+
+@dataclass
+class PPOConfig:
+    n_envs: int = 1
+    """Parallel training envs; a budget is counted in frames over all of them."""
+    n_steps: int = 2048
+    """Frames per env per rollout."""
+    batch_size: int = 64
+    n_epochs: int = 10
+    learning_rate: float = 3e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    use_sde: bool = False
+    """State-dependent exploration (continuous actions only)."""
+    sde_sample_freq: int = -1
+    net_arch: list[int] = field(default_factory=lambda: [64, 64])
+    """Hidden layer widths of the actor and of the critic (separate networks)."""
+    activation: str = "tanh"
+    """tanh or relu."""
+
+
+class PPOAgent:
+    def __init__(self, ctx: AgentContext):
+        import torch
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.monitor import Monitor
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        cfg: PPOConfig = ctx.config
+        activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
+        if cfg.activation not in activations:
+            raise ValueError(f"ppo activation must be one of {sorted(activations)}")
+        venv = DummyVecEnv([lambda: Monitor(ctx.make_env()) for _ in range(cfg.n_envs)])
+        self.model = PPO(
+            "MlpPolicy",
+            venv,
+            n_steps=cfg.n_steps,
+            batch_size=cfg.batch_size,
+            n_epochs=cfg.n_epochs,
+            learning_rate=cfg.learning_rate,
+            gamma=cfg.gamma,
+            gae_lambda=cfg.gae_lambda,
+            clip_range=cfg.clip_range,
+            ent_coef=cfg.ent_coef,
+            vf_coef=cfg.vf_coef,
+            max_grad_norm=cfg.max_grad_norm,
+            use_sde=cfg.use_sde,
+            sde_sample_freq=cfg.sde_sample_freq,
+            policy_kwargs={
+                "net_arch": {"pi": list(cfg.net_arch), "vf": list(cfg.net_arch)},
+                "activation_fn": activations[cfg.activation],
+            },
+            seed=ctx.seed,
+            device="cpu",
+            verbose=0,
+        )
+
+    def act(self, observation: np.ndarray):
+        action, _ = self.model.predict(observation, deterministic=True)
+        return action
+
+    def learn(self, budget: int, recorder: Recorder) -> None:
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        class Report(BaseCallback):
+            def _on_step(self) -> bool:
+                for info in self.locals["infos"]:
+                    episode = info.get("episode")
+                    if episode is not None:
+                        recorder.episode(self.num_timesteps, float(episode["r"]), int(episode["l"]))
+                return recorder.step(self.num_timesteps)
+
+        if recorder.step(0):
+            # SB3 stops at the end of a rollout; the callback stops it at the budget itself.
+            self.model.learn(total_timesteps=budget + self.model.n_steps * self.model.n_envs,
+                             callback=Report())
+
+
+PPO_SPEC = AgentSpec(
+    name="ppo",
+    make=PPOAgent,
+    config=PPOConfig,
+    actions=frozenset({"discrete", "continuous"}),
+    observations=frozenset({"state", "encoded"}),
+    defaults={
+        "pendulum": AgentDefaults(
+            values={
+                "n_envs": 4,
+                "n_steps": 1024,
+                "gae_lambda": 0.95,
+                "gamma": 0.9,
+                "n_epochs": 10,
+                "ent_coef": 0.0,
+                "learning_rate": 1e-3,
+                "clip_range": 0.2,
+                "use_sde": True,
+                "sde_sample_freq": 4,
+            },
+            source="rl-baselines3-zoo hyperparams/ppo.yml, Pendulum-v1",
+        ),
+        "mountaincar": AgentDefaults(
+            values={},
+            source="Stable-Baselines3 PPO defaults (zoo's MountainCar-v0 set needs "
+            "VecNormalize, which senbench does not apply)",
+        ),
+    },
+    description="Stable-Baselines3 PPO with an MLP actor-critic",
+)

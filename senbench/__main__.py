@@ -1,0 +1,3 @@
+from senbench.cli import app
+
+app()

@@ -1,0 +1,174 @@
+"""Running one cell: build its observation pipeline and agent, learn, evaluate, write.
+
+A cell that raises is recorded as ``failed`` with its error text and the rows it had; a
+KeyboardInterrupt is not caught, so an interrupted cell writes nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import random
+import subprocess
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from senbench.evaluation import CellRecorder, Evaluator
+from senbench.observations import make_env
+from senbench.plugins import registries
+from senbench.results import write_cell
+from senbench.specs import AgentContext
+from senbench.suite import Cell
+
+ProgressCallback = Callable[[str, int, float, float | None], None]
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """What is the same for every cell of one run, gathered once."""
+
+    versions: dict[str, str]
+    git_commit: str | None
+    host: str
+
+    @classmethod
+    def gather(cls) -> RunInfo:
+        def ver(dist: str) -> str:
+            try:
+                return version(dist)
+            except PackageNotFoundError:
+                return ""
+
+        dists = {"senbench": "senbench", "torch": "torch", "gymnasium": "gymnasium",
+                 "sb3": "stable-baselines3", "numpy": "numpy"}
+        return cls({k: ver(d) for k, d in dists.items()}, _git_commit(), platform.node())
+
+
+def _git_commit() -> str | None:
+    try:
+        out = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=40"],
+                             capture_output=True, text=True, timeout=10, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None
+
+
+@dataclass(frozen=True)
+class CellOutcome:
+    cell_id: str
+    label: str
+    status: str
+    error: str | None
+    final_eval: float | None
+    wall_s: float
+
+
+def run_cell(cell: Cell, directory: Path, info: RunInfo, threads: int,
+             progress: ProgressCallback | None = None) -> CellOutcome:
+    started = datetime.now(UTC)
+    _reset_peak_rss()
+    recorder: CellRecorder | None = None
+    status, error = "ok", None
+    try:
+        cfg = cell.config
+        regs = registries()
+        env_spec = regs.envs.get(cfg["env"]["name"])
+        agent_spec = regs.agents.get(cfg["agent"])
+
+        def make() -> Any:
+            return make_env(env_spec, cfg["observation"], cfg["env"]["max_episode_steps"],
+                            cfg["env"]["options"])
+
+        _seed_everything(cell.seed)
+        ctx = AgentContext(agent_spec.config(**cfg["hyperparams"]), env_spec, make, cell.seed,
+                           threads)
+        agent = agent_spec.make(ctx)
+        evaluator = Evaluator(make(), cfg["eval"]["episodes"], cell.seed)
+        report = None if progress is None else (lambda *a: progress(cell.id, *a))
+        recorder = CellRecorder(cfg["budget"], cfg["eval"]["every"],
+                                lambda: evaluator(agent.act), report)
+        agent.learn(cfg["budget"], recorder)
+        if recorder.steps < cfg["budget"]:
+            raise RuntimeError(f"agent '{cfg['agent']}' stopped after {recorder.steps} of "
+                               f"{cfg['budget']} frames")
+    except Exception as exc:  # a cell's failure must not stop the grid
+        status = "failed"
+        error = "".join(traceback.format_exception(exc)[-12:]).strip()
+    ended = datetime.now(UTC)
+    wall = (ended - started).total_seconds()
+    rows = list(recorder.rows) if recorder else []
+    steps = recorder.steps if recorder else 0
+    rows.append({"kind": "cell", "step": steps, "return": None, "return_std": None,
+                 "length": None, "wall_s": wall})
+    common = cell_metadata(cell, info, threads, status, error, started, ended, wall)
+    write_cell(directory, cell.id, [{**common, **row} for row in rows])
+    final = recorder.last_eval if recorder else None
+    return CellOutcome(cell.id, cell.label, status, error, final, wall)
+
+
+def cell_metadata(cell: Cell, info: RunInfo, threads: int, status: str, error: str | None,
+              started: datetime, ended: datetime, wall: float) -> dict[str, Any]:
+    cfg = cell.config
+    return {
+        "cell_id": cell.id, "suite": cell.suite, "env": cell.env, "method": cell.method,
+        "variant": cell.variant, "agent": cfg["agent"], "observation": cfg["observation"],
+        "seed": cell.seed, "threshold": float(cfg["env"]["threshold"]), "budget": cfg["budget"],
+        "status": status, "error": error, "config": json.dumps(cfg, sort_keys=True),
+        "hyperparams_source": cell.hyperparams_source,
+        **{f"{k}_version": v for k, v in info.versions.items()},
+        "git_commit": info.git_commit, "host": info.host, "threads": threads,
+        "started_at": started, "ended_at": ended, "cell_wall_s": wall,
+        "peak_rss_mb": _peak_rss_mb(),
+    }
+
+
+def _seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed)
+    try:
+        import torch
+    except ImportError:
+        return
+    torch.manual_seed(seed)
+
+
+def _reset_peak_rss() -> None:
+    """Linux lets a process reset its high-water mark, so the peak is per cell even when a
+    worker process runs many cells."""
+    try:
+        with open(f"/proc/{os.getpid()}/clear_refs", "w") as handle:
+            handle.write("5")
+    except OSError:
+        pass
+
+
+def _peak_rss_mb() -> float:
+    try:
+        with open(f"/proc/{os.getpid()}/status") as handle:
+            for line in handle:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, threads: int) -> CellOutcome:
+    """A worker process died under this cell: record it as failed, from the parent."""
+    error = "the worker process running this cell died (killed, or out of memory)"
+    now = datetime.now(UTC)
+    row = {"kind": "cell", "step": 0, "return": None, "return_std": None, "length": None,
+           "wall_s": 0.0}
+    meta = cell_metadata(cell, info, threads, "failed", error, now, now, 0.0)
+    write_cell(directory, cell.id, [{**meta, **row, "peak_rss_mb": None}])
+    return CellOutcome(cell.id, cell.label, "failed", error, None, 0.0)

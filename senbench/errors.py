@@ -1,0 +1,36 @@
+"""Errors a user can cause. The CLI prints their message, without a traceback, and exits 2."""
+
+from __future__ import annotations
+
+import difflib
+
+
+class SenbenchError(Exception):
+    """Base class: the message says what to change."""
+
+    exit_code = 2
+
+
+class PluginError(SenbenchError):
+    """A plugin failed to load or registered something invalid."""
+
+
+class SuiteError(SenbenchError):
+    """A suite file is malformed or names something that does not exist."""
+
+
+class ResultsError(SenbenchError):
+    """A results folder is missing or holds no readable results."""
+
+
+class UnknownNameError(SenbenchError):
+    def __init__(self, kind: str, name: str, known: list[str]):
+        self.kind, self.name, self.known = kind, name, sorted(known)
+        super().__init__(unknown_name_message(kind, name, self.known))
+
+
+def unknown_name_message(kind: str, name: str, known: list[str]) -> str:
+    close = difflib.get_close_matches(name, known, n=1, cutoff=0.5)
+    hint = f" Did you mean '{close[0]}'?" if close else ""
+    listing = ", ".join(sorted(known)) if known else "none installed"
+    return f"unknown {kind} '{name}'.{hint} Known {kind}s: {listing}."

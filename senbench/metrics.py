@@ -1,0 +1,61 @@
+"""Per-cell metrics of an evaluation curve.
+
+- final return: mean evaluation return over the last ``FINAL_WINDOW`` evaluations;
+- steps-to-threshold: the first evaluation step from which the trailing mean of
+  ``THRESHOLD_WINDOW`` evaluations stays at or above the threshold until the end of the
+  budget; NaN when never reached (a value, not an error);
+- AUC: the curve's mean return over the whole budget (trapezoid rule over frames), one
+  number for data efficiency.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+FINAL_WINDOW = 3
+THRESHOLD_WINDOW = 3
+
+
+def final_return(returns: np.ndarray, window: int = FINAL_WINDOW) -> float:
+    returns = np.asarray(returns, dtype=float)
+    return float(np.mean(returns[-window:])) if len(returns) else float("nan")
+
+
+def steps_to_threshold(steps: np.ndarray, returns: np.ndarray, threshold: float,
+                       window: int = THRESHOLD_WINDOW) -> float:
+    steps = np.asarray(steps, dtype=float)
+    trailing = pd.Series(np.asarray(returns, dtype=float)).rolling(window, min_periods=1).mean()
+    below = np.flatnonzero(trailing.to_numpy() < threshold)
+    first = 0 if len(below) == 0 else below[-1] + 1
+    return float(steps[first]) if first < len(steps) else float("nan")
+
+
+def auc(steps: np.ndarray, returns: np.ndarray) -> float:
+    steps = np.asarray(steps, dtype=float)
+    returns = np.asarray(returns, dtype=float)
+    if len(steps) < 2 or steps[-1] == steps[0]:
+        return float(returns[0]) if len(returns) else float("nan")
+    return float(np.trapezoid(returns, steps) / (steps[-1] - steps[0]))
+
+
+def cell_metrics(results: pd.DataFrame) -> pd.DataFrame:
+    """One row per cell: identity, status, and the three metrics of its evaluation curve."""
+    cells = results[results["kind"] == "cell"].set_index("cell_id")
+    evals = results[results["kind"] == "eval"].sort_values("step")
+    rows = []
+    for cell_id, cell in cells.iterrows():
+        curve = evals[evals["cell_id"] == cell_id]
+        steps, returns = curve["step"].to_numpy(), curve["return"].to_numpy()
+        ok = cell["status"] == "ok" and len(curve) > 0
+        rows.append({
+            "cell_id": cell_id, "env": cell["env"], "method": cell["method"],
+            "variant": cell["variant"], "seed": cell["seed"], "status": cell["status"],
+            "threshold": cell["threshold"], "budget": cell["budget"],
+            "final_return": final_return(returns) if ok else np.nan,
+            "steps_to_threshold": steps_to_threshold(steps, returns, cell["threshold"])
+            if ok else np.nan,
+            "auc": auc(steps, returns) if ok else np.nan,
+            "wall_s": cell["cell_wall_s"],
+        })
+    return pd.DataFrame(rows)

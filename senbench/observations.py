@@ -1,0 +1,48 @@
+"""Observation pipelines: what an agent sees of an env.
+
+``state`` is the env's own observation vector (the true state). Whatever the observation,
+the physical state travels in ``info["state"]`` so that evaluation and encoder checks can
+read it; an agent never receives it as its observation unless it runs on ``state``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+from senbench.specs import EnvSpec
+
+
+class PhysicalStateInfo(gymnasium.Wrapper):
+    """Puts the physical state (the env spec's ``state_labels`` order) in ``info["state"]``."""
+
+    def __init__(self, env: gymnasium.Env, spec: EnvSpec):
+        super().__init__(env)
+        self._read_state: Callable[[Any], np.ndarray] = spec.physical_state
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        return obs, {**info, "state": self._read_state(self.env)}
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return obs, reward, terminated, truncated, {**info, "state": self._read_state(self.env)}
+
+
+def state_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any]) -> gymnasium.Env:
+    return PhysicalStateInfo(spec.make(max_episode_steps=max_episode_steps, **options), spec)
+
+
+OBSERVATIONS: dict[str, Callable[[EnvSpec, int, Mapping[str, Any]], gymnasium.Env]] = {
+    "state": state_env,
+}
+"""Observation name → ``build(env_spec, max_episode_steps, options)``."""
+
+
+def make_env(
+    spec: EnvSpec, observation: str, max_episode_steps: int, options: Mapping[str, Any]
+) -> gymnasium.Env:
+    return OBSERVATIONS[observation](spec, max_episode_steps, options)

@@ -1,0 +1,84 @@
+"""Rich progress for a grid: one bar for the grid, a live line per running cell (frames,
+frames/s, latest evaluation return), and a line per finished cell that stays in the log."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING
+
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+)
+
+if TYPE_CHECKING:
+    from senbench.cell import CellOutcome
+
+
+class GridProgress:
+    """Shows progress on ``console``; with ``None`` it shows nothing (library use, tests)."""
+
+    def __init__(self, console: Console | None):
+        self.console = console
+        self._progress: Progress | None = None
+        self._grid = None
+        self._cells: dict[str, int] = {}
+        self._done: set[str] = set()
+
+    @contextmanager
+    def grid(self, total: int, skipped: int) -> Iterator[None]:
+        if self.console is None:
+            yield
+            return
+        self._progress = Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[rate]}"),
+            TextColumn("{task.fields[last_eval]}"),
+            TimeElapsedColumn(),
+            console=self.console,
+        )
+        if skipped:
+            self.console.print(f"resuming: {skipped} of {total} cells already finished")
+        self._grid = self._progress.add_task("grid", total=total, completed=skipped, rate="",
+                                             last_eval="")
+        with self._progress:
+            yield
+        self._progress = None
+
+    def started(self, cell_id: str, label: str, budget: int) -> None:
+        if self._progress is None or cell_id in self._done or cell_id in self._cells:
+            return
+        self._cells[cell_id] = self._progress.add_task(f"  {label}", total=budget, rate="",
+                                                       last_eval="")
+
+    def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None) -> None:
+        task = self._cells.get(cell_id)
+        if self._progress is None or task is None:
+            return
+        shown = "" if last_eval is None else f"eval {last_eval:.1f}"
+        self._progress.update(task, completed=steps, rate=f"{rate:,.0f} frames/s",
+                              last_eval=shown)
+
+    def finished(self, outcome: CellOutcome) -> None:
+        self._done.add(outcome.cell_id)
+        if self._progress is None:
+            return
+        task = self._cells.pop(outcome.cell_id, None)
+        if task is not None:
+            self._progress.remove_task(task)
+        self._progress.advance(self._grid)
+        if outcome.status == "ok":
+            final = "" if outcome.final_eval is None else f", final eval {outcome.final_eval:.1f}"
+            self._progress.console.print(
+                f"[green]done[/] {outcome.label}{final} ({outcome.wall_s:.1f} s)")
+        else:
+            first_line = (outcome.error or "").strip().splitlines()[-1:] or [""]
+            self._progress.console.print(
+                f"[red]failed[/] {outcome.label}: {first_line[0]}", highlight=False)

@@ -1,0 +1,130 @@
+"""Results: one tidy Parquet file per cell, written atomically, read back by glob.
+
+A file ``<results>/<suite>/cells/<cell_id>.parquet`` holds one row per evaluation point
+(``kind = "eval"``), one per training episode (``"episode"``) and exactly one summary row
+(``"cell"``). Every row carries the cell's identity and metadata as plain columns, so
+``SELECT * FROM 'results/quickstart/cells/*.parquet'`` needs no senbench import.
+A file is written to a hidden temp name and renamed into place: a killed run leaves either
+the whole file or none, and readers never see a temp file (it does not end in .parquet).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import psutil
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from senbench.errors import ResultsError
+
+SCHEMA = pa.schema(
+    [
+        ("cell_id", pa.string()),
+        ("suite", pa.string()),
+        ("env", pa.string()),
+        ("method", pa.string()),
+        ("variant", pa.string()),
+        ("agent", pa.string()),
+        ("observation", pa.string()),
+        ("seed", pa.int64()),
+        ("kind", pa.string()),
+        ("step", pa.int64()),
+        ("return", pa.float64()),
+        ("return_std", pa.float64()),
+        ("length", pa.float64()),
+        ("wall_s", pa.float64()),
+        ("threshold", pa.float64()),
+        ("budget", pa.int64()),
+        ("status", pa.string()),
+        ("error", pa.string()),
+        ("config", pa.string()),
+        ("hyperparams_source", pa.string()),
+        ("senbench_version", pa.string()),
+        ("torch_version", pa.string()),
+        ("gymnasium_version", pa.string()),
+        ("sb3_version", pa.string()),
+        ("numpy_version", pa.string()),
+        ("git_commit", pa.string()),
+        ("host", pa.string()),
+        ("threads", pa.int64()),
+        ("started_at", pa.timestamp("us", tz="UTC")),
+        ("ended_at", pa.timestamp("us", tz="UTC")),
+        ("cell_wall_s", pa.float64()),
+        ("peak_rss_mb", pa.float64()),
+    ]
+)
+KINDS = ("eval", "episode", "cell")
+STATUSES = ("ok", "failed")
+
+
+def cells_dir(results_root: str | Path, suite_name: str) -> Path:
+    return Path(results_root) / suite_name / "cells"
+
+
+def cell_path(directory: Path, cell_id: str) -> Path:
+    return directory / f"{cell_id}.parquet"
+
+
+def write_cell(directory: Path, cell_id: str, rows: list[dict[str, Any]]) -> Path:
+    """Write a cell's rows atomically: temp file, fsync, rename."""
+    directory.mkdir(parents=True, exist_ok=True)
+    table = pa.Table.from_pylist(rows, schema=SCHEMA)
+    final = cell_path(directory, cell_id)
+    tmp = directory / f".{cell_id}.{os.getpid()}.tmp"
+    try:
+        with open(tmp, "wb") as handle:
+            pq.write_table(table, handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, final)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return final
+
+
+def finished_status(path: Path) -> str | None:
+    """The status recorded in a cell file, or None if there is no readable file."""
+    try:
+        table = pq.read_table(path, columns=["kind", "status"])
+    except (FileNotFoundError, pa.ArrowInvalid, OSError):
+        return None
+    for kind, status in zip(table["kind"].to_pylist(), table["status"].to_pylist(), strict=True):
+        if kind == "cell":
+            return status
+    return None
+
+
+def remove_stray_temp_files(directory: Path) -> int:
+    """Delete temp files left by writers that are no longer alive (a killed run)."""
+    removed = 0
+    for tmp in directory.glob(".*.tmp"):
+        parts = tmp.name.split(".")
+        pid = int(parts[2]) if len(parts) == 4 and parts[2].isdigit() else None
+        if pid is None or not psutil.pid_exists(pid) or pid == os.getpid():
+            tmp.unlink(missing_ok=True)
+            removed += 1
+    return removed
+
+
+def find_cell_files(path: str | Path) -> list[Path]:
+    """Cell files under a results folder: a suite folder, its cells/ folder, or a root
+    holding several suites."""
+    root = Path(path)
+    if not root.exists():
+        raise ResultsError(f"{root}: no such results folder")
+    if root.is_file():
+        return [root]
+    files = sorted(root.glob("*.parquet")) or sorted(root.glob("**/cells/*.parquet"))
+    if not files:
+        raise ResultsError(f"{root}: holds no cell results (*.parquet); run a suite first")
+    return files
+
+
+def read_results(path: str | Path) -> pd.DataFrame:
+    """All rows of all cells under ``path`` as one DataFrame."""
+    files = find_cell_files(path)
+    return pq.read_table([str(f) for f in files], schema=SCHEMA).to_pandas()

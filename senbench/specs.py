@@ -1,0 +1,116 @@
+"""What a plugin registers, and the protocol an agent follows.
+
+Every spec carries a ``config`` dataclass: its fields are the hyperparameters a suite may
+set, with a docstring-style comment giving the unit. A key that is not a field is an error
+at validation time, so a typo in a suite never silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal, Protocol
+
+import numpy as np
+
+ActionKind = Literal["discrete", "continuous"]
+
+
+@dataclass(frozen=True)
+class EnvSpec:
+    """An environment: gymnasium dynamics, the physical state, and what counts as solved."""
+
+    name: str
+    make: Callable[..., Any]
+    """``make(max_episode_steps=..., **options) -> gymnasium.Env`` observing the state vector."""
+    physical_state: Callable[[Any], np.ndarray]
+    """Reads the physical state (``state_labels`` order) from the unwrapped env."""
+    state_labels: tuple[str, ...]
+    state_low: tuple[float, ...]
+    state_high: tuple[float, ...]
+    actions: ActionKind
+    threshold: float
+    """Evaluation return from which a policy counts as solving the task."""
+    threshold_source: str
+    max_episode_steps: int
+    options: Mapping[str, type] = field(default_factory=dict)
+    """Extra keyword options a suite may pass to ``make``, with their types."""
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class AgentDefaults:
+    """Hyperparameters for one env, and where they come from (paper, zoo, our tuning)."""
+
+    values: Mapping[str, Any]
+    source: str
+
+
+@dataclass(frozen=True)
+class AgentSpec:
+    """A learner: how to build it, its hyperparameters, what it can act on."""
+
+    name: str
+    make: Callable[[AgentContext], Agent]
+    config: type
+    """A dataclass; its fields are the hyperparameters and their defaults."""
+    actions: frozenset[str]
+    observations: frozenset[str]
+    defaults: Mapping[str, AgentDefaults] = field(default_factory=dict)
+    """Per-env overrides of the config defaults, keyed by env name."""
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class EncoderSpec:
+    """A state encoder architecture: ``build(input_shape, state_dim, config) -> nn.Module``."""
+
+    name: str
+    build: Callable[..., Any]
+    config: type
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class SamplerSpec:
+    """A way to draw labelled (frame stack, true state) data from an env."""
+
+    name: str
+    sample: Callable[..., Any]
+    config: type
+    description: str = ""
+
+
+@dataclass
+class AgentContext:
+    """Everything an agent is given for one cell. It never sees the true state unless its
+    observation is ``state``."""
+
+    config: Any
+    """The agent's config dataclass, resolved: defaults ← per-env defaults ← suite."""
+    env: EnvSpec
+    make_env: Callable[[], Any]
+    """Builds a training env with the cell's observation pipeline; the agent seeds its
+    first ``reset`` with ``seed`` (vectorised agents: ``seed + i`` for env ``i``)."""
+    seed: int
+    threads: int
+    """torch threads this cell may use (cores / workers)."""
+
+
+class Recorder(Protocol):
+    """The one protocol every agent reports through."""
+
+    def step(self, steps: int) -> bool:
+        """Report the total environment steps (frames) taken so far; evaluations run here
+        when due. Returns False once the budget is spent: the agent stops."""
+
+    def episode(self, steps: int, episode_return: float, length: int) -> None:
+        """Report a finished training episode at ``steps`` total frames."""
+
+
+class Agent(Protocol):
+    def learn(self, budget: int, recorder: Recorder) -> None:
+        """Learn for ``budget`` environment steps, calling ``recorder`` as it goes."""
+
+    def act(self, observation: np.ndarray) -> Any:
+        """The greedy / deterministic action, used by evaluation."""

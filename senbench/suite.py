@@ -1,0 +1,363 @@
+"""Suites: a YAML grid of comparisons, validated, expanded into cells with stable ids.
+
+A cell is one (env, method, variant, seed). Its id is a hash of its resolved config — the
+agent's full hyperparameters after defaults are applied, the env options, budget and
+evaluation — so the same comparison always lands in the same result file, and changing
+anything that could change the curve gives a new one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+import pydantic
+from pydantic import BaseModel, ConfigDict, Field, PositiveInt, field_validator
+
+from senbench.errors import SuiteError, unknown_name_message
+from senbench.observations import OBSERVATIONS
+from senbench.registry import Registries
+from senbench.suite_yaml import Loc, SuiteSource, read_suite_file
+
+
+class StrictModel(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class EnvEntry(StrictModel):
+    max_episode_steps: PositiveInt | None = None
+    """Episode cap in steps; the env's own default when absent."""
+    threshold: float | None = None
+    """Evaluation return that counts as solved; the env's default when absent."""
+    budget: PositiveInt | None = None
+    """Frames (environment steps) per cell on this env; the suite's budget when absent."""
+    options: dict[str, Any] = {}
+    """Keyword options of the env plugin, e.g. ``goal_velocity`` for mountaincar."""
+
+
+class EncoderEntry(StrictModel):
+    arch: str
+    sampler: str = "uniform"
+    samples: PositiveInt = 50_000
+    """Labelled (frames, state) pairs in the pool."""
+    fraction: Annotated[float, Field(gt=0, le=1)] = 1.0
+    """Share of the pool used for training: the paper's d% as a fraction."""
+    config: dict[str, Any] = {}
+
+
+class MethodEntry(StrictModel):
+    agent: str
+    observation: str = "state"
+    hyperparams: dict[str, Any] = {}
+    encoder: EncoderEntry | None = None
+    envs: list[str] | None = None
+    """Run only on these envs (default: every env of the suite)."""
+
+
+class EvalEntry(StrictModel):
+    every: PositiveInt
+    """Frames between evaluations."""
+    episodes: PositiveInt = 10
+    """Deterministic episodes per evaluation."""
+
+
+class SuiteModel(StrictModel):
+    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]*$")]
+    description: str = ""
+    envs: Annotated[dict[str, EnvEntry], Field(min_length=1)]
+    methods: Annotated[dict[str, MethodEntry], Field(min_length=1)]
+    seeds: list[int]
+    budget: PositiveInt
+    """Frames (environment steps) per cell."""
+    eval: EvalEntry
+    variants: dict[str, dict[str, list[Any]]] = {}
+    """method → {parameter path → values}: one variant per combination of values."""
+
+    @field_validator("envs", mode="before")
+    @classmethod
+    def _empty_env_entries(cls, value: Any) -> Any:
+        if isinstance(value, dict):
+            return {k: ({} if v is None else v) for k, v in value.items()}
+        return value
+
+    @field_validator("seeds", mode="before")
+    @classmethod
+    def _seed_count(cls, value: Any) -> Any:
+        if isinstance(value, int) and not isinstance(value, bool):
+            if value < 1:
+                raise ValueError("a seed count must be at least 1")
+            return list(range(value))
+        return value
+
+
+@dataclass(frozen=True)
+class Cell:
+    suite: str
+    env: str
+    method: str
+    variant: str
+    """``path=value`` pairs joined by ``,``; empty for a method's base variant."""
+    seed: int
+    config: dict[str, Any]
+    """The resolved config: everything that can change the curve."""
+    hyperparams_source: str = ""
+
+    @property
+    def id(self) -> str:
+        canonical = json.dumps(self.config, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(canonical.encode()).hexdigest()[:16]
+
+    @property
+    def label(self) -> str:
+        variant = f"[{self.variant}]" if self.variant else ""
+        return f"{self.env}/{self.method}{variant} seed {self.seed}"
+
+
+@dataclass
+class Suite:
+    model: SuiteModel
+    source: SuiteSource
+    cells: list[Cell]
+
+    @property
+    def name(self) -> str:
+        return self.model.name
+
+
+def load_suite(path: str | Path, registries: Registries) -> Suite:
+    """Read, validate and expand a suite; raise SuiteError listing every problem found."""
+    source = read_suite_file(path)
+    if not isinstance(source.data, dict):
+        raise SuiteError(f"{source.path}: a suite is a YAML mapping (name, envs, methods, ...)")
+    try:
+        model = SuiteModel.model_validate(source.data)
+    except pydantic.ValidationError as exc:
+        raise SuiteError(_format_pydantic(exc, source)) from None
+    problems: list[str] = []
+    cells = _expand(model, source, registries, problems)
+    if problems:
+        raise SuiteError(_join(source, problems))
+    return Suite(model, source, cells)
+
+
+def _join(source: SuiteSource, problems: list[str]) -> str:
+    head = f"{source.path}: {len(problems)} problem{'s' if len(problems) > 1 else ''}"
+    return head + "\n" + "\n".join(f"  {p}" for p in problems)
+
+
+def _dotted(loc: Loc) -> str:
+    return ".".join(str(p) for p in loc)
+
+
+def _format_pydantic(exc: pydantic.ValidationError, source: SuiteSource) -> str:
+    problems = []
+    for err in exc.errors():
+        loc = tuple(err["loc"])
+        if err["type"] == "extra_forbidden":
+            known = _fields_at(loc[:-1])
+            msg = "unknown key; " + unknown_name_message("key", str(loc[-1]), known)
+        elif err["type"] == "missing":
+            msg = "required key is missing"
+        else:
+            msg = f"{err['msg']} (got {err.get('input')!r})"
+        problems.append(f"{source.where(loc)}: {_dotted(loc) or '(top level)'}: {msg}")
+    return _join(source, problems)
+
+
+def _fields_at(loc: Loc) -> list[str]:
+    """The keys allowed at ``loc`` in the suite schema, for "did you mean" on typos."""
+    model: Any = SuiteModel
+    rest = list(loc)
+    while rest:
+        part = rest.pop(0)
+        annotation = model.model_fields[part].annotation
+        while True:
+            args = [a for a in getattr(annotation, "__args__", ()) if a is not type(None)]
+            if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+                model = annotation
+                break
+            if getattr(annotation, "__origin__", None) is dict and rest:
+                rest.pop(0)  # a user-chosen key (an env or method name)
+                annotation = args[1]
+            elif args:
+                annotation = args[0]
+            else:
+                return []
+    return list(model.model_fields)
+
+
+def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: list[str]):
+    def problem(loc: Loc, msg: str) -> None:
+        problems.append(f"{source.where(loc)}: {_dotted(loc)}: {msg}")
+
+    envs = _check_envs(model, regs, problem)
+    for method_name in model.variants:
+        if method_name not in model.methods:
+            known = list(model.methods)
+            problem(("variants", method_name), unknown_name_message("method", method_name, known))
+    cells: list[Cell] = []
+    for method_name, method in model.methods.items():
+        agent = _check_method(method_name, method, regs, problem)
+        if agent is None:
+            continue
+        loc = ("methods", method_name)
+        env_names = method.envs if method.envs is not None else list(model.envs)
+        for i, env_name in enumerate(env_names):
+            if env_name not in model.envs:
+                known = list(model.envs)
+                problem((*loc, "envs", i), unknown_name_message("suite env", env_name, known))
+                continue
+            if env_name not in envs:
+                continue  # already reported as an unknown env
+            env_spec, env_entry = envs[env_name]
+            if env_spec.actions not in agent.actions:
+                problem(loc, f"agent '{agent.name}' needs {'/'.join(sorted(agent.actions))} "
+                        f"actions but env '{env_name}' has {env_spec.actions} actions; restrict "
+                        "the method with 'envs: [...]'")
+                continue
+            env_config = {
+                "name": env_name,
+                "max_episode_steps": env_entry.max_episode_steps or env_spec.max_episode_steps,
+                "options": dict(env_entry.options),
+                "threshold": env_spec.threshold if env_entry.threshold is None
+                else env_entry.threshold,
+            }
+            defaults = agent.defaults.get(env_name)
+            source_note = defaults.source if defaults else "agent defaults"
+            for variant, overrides in _variants(model.variants.get(method_name, {})):
+                hyperparams, encoder, hp_loc = _apply_variant(
+                    method_name, method, overrides, problem
+                )
+                merged = {**(defaults.values if defaults else {}), **hyperparams}
+                resolved = _resolve_config(agent, merged, hp_loc, problem)
+                if resolved is None:
+                    continue
+                for seed in model.seeds:
+                    config = {
+                        "env": env_config,
+                        "method": method_name,
+                        "agent": agent.name,
+                        "observation": method.observation,
+                        "hyperparams": resolved,
+                        "encoder": encoder,
+                        "variant": overrides,
+                        "seed": seed,
+                        "budget": env_entry.budget or model.budget,
+                        "eval": model.eval.model_dump(),
+                    }
+                    cells.append(Cell(model.name, env_name, method_name, variant, seed, config,
+                                      source_note))
+    if len({c.id for c in cells}) != len(cells):
+        problems.append(f"{source.path}: two cells resolve to the same config; remove the "
+                        "duplicate seed, variant value or method")
+    return cells
+
+
+def _check_envs(model: SuiteModel, regs: Registries, problem) -> dict[str, tuple]:
+    envs = {}
+    for env_name, entry in model.envs.items():
+        if env_name not in regs.envs:
+            problem(("envs", env_name), unknown_name_message("env", env_name, regs.envs.names()))
+            continue
+        spec = regs.envs.get(env_name)
+        envs[env_name] = (spec, entry)
+        for key, value in entry.options.items():
+            loc = ("envs", env_name, "options", key)
+            if key not in spec.options:
+                problem(loc, unknown_name_message(f"{env_name} option", key, list(spec.options)))
+            elif not _fits(value, spec.options[key]):
+                problem(loc, f"expected {spec.options[key].__name__}, got {value!r}")
+        budget = entry.budget or model.budget
+        if model.eval.every > budget:
+            problem(("eval", "every"), f"evaluates every {model.eval.every} frames but the "
+                    f"budget on {env_name} is {budget}; lower eval.every")
+    return envs
+
+
+def _check_method(name: str, method: MethodEntry, regs: Registries, problem):
+    """The method's agent spec, or None after reporting why the method cannot run."""
+    loc = ("methods", name)
+    if method.agent not in regs.agents:
+        problem((*loc, "agent"), unknown_name_message("agent", method.agent, regs.agents.names()))
+        return None
+    agent = regs.agents.get(method.agent)
+    if method.observation not in OBSERVATIONS:
+        message = unknown_name_message("observation", method.observation, list(OBSERVATIONS))
+        problem((*loc, "observation"), message)
+        return None
+    if method.observation not in agent.observations:
+        problem((*loc, "observation"), f"agent '{agent.name}' does not learn on "
+                f"'{method.observation}'; it learns on {', '.join(sorted(agent.observations))}")
+        return None
+    if (method.observation == "encoded") != (method.encoder is not None):
+        problem((*loc, "encoder"), "an encoder is needed exactly when observation is 'encoded'")
+        return None
+    if method.encoder is not None:
+        for key, registry in (("arch", regs.encoders), ("sampler", regs.samplers)):
+            value = getattr(method.encoder, key)
+            if value not in registry:
+                message = unknown_name_message(registry.kind, value, registry.names())
+                problem((*loc, "encoder", key), message)
+                return None
+    return agent
+
+
+def _apply_variant(method_name: str, method: MethodEntry, overrides: dict[str, Any], problem):
+    """The method's hyperparams and encoder with a variant's values in, and where a bad
+    hyperparameter would be reported."""
+    hyperparams = dict(method.hyperparams)
+    encoder = method.encoder.model_dump() if method.encoder else None
+    hp_loc: Loc = ("methods", method_name, "hyperparams")
+    for path, value in overrides.items():
+        head, _, field = path.partition(".")
+        if head == "hyperparams" and field:
+            hyperparams[field] = value
+            hp_loc = ("variants", method_name, path)
+        elif head == "encoder" and encoder is not None and field in encoder:
+            encoder[field] = value
+        else:
+            problem(("variants", method_name, path), "a variant sweeps 'hyperparams.<name>', or "
+                    "'encoder.<field>' of a method that has an encoder")
+    return hyperparams, encoder, hp_loc
+
+
+def _variants(axes: dict[str, list[Any]]):
+    if not axes:
+        yield "", {}
+        return
+    paths = list(axes)
+    for values in itertools.product(*(axes[p] for p in paths)):
+        overrides = dict(zip(paths, values, strict=True))
+        yield ",".join(f"{p}={v}" for p, v in overrides.items()), overrides
+
+
+def _resolve_config(agent, params: dict[str, Any], loc: Loc, problem) -> dict[str, Any] | None:
+    fields = [f.name for f in dataclasses.fields(agent.config)]
+    unknown = [k for k in params if k not in fields]
+    for key in unknown:
+        problem((*loc, key), unknown_name_message(f"{agent.name} hyperparameter", key, fields))
+    if unknown:
+        return None
+    try:
+        config = pydantic.TypeAdapter(agent.config).validate_python(params)
+    except pydantic.ValidationError as exc:
+        for err in exc.errors():
+            problem((*loc, *err["loc"]), f"{err['msg']} (got {err.get('input')!r})")
+        return None
+    return dataclasses.asdict(config)
+
+
+def _fits(value: Any, expected: type) -> bool:
+    if expected is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    return isinstance(value, expected)
+
+
+def slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-")
