@@ -163,9 +163,10 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, threads: int) -> CellOutcome:
+def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, threads: int,
+                     how: str) -> CellOutcome:
     """A worker process died under this cell: record it as failed, from the parent."""
-    error = "the worker process running this cell died (killed, or out of memory)"
+    error = f"the worker process running this cell {how}"
     now = datetime.now(UTC)
     row = {"kind": "cell", "step": 0, "return": None, "return_std": None, "length": None,
            "wall_s": 0.0}

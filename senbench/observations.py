@@ -25,11 +25,12 @@ class PhysicalStateInfo(gymnasium.Wrapper):
 
     def reset(self, **kwargs):
         obs, info = self.env.reset(**kwargs)
-        return obs, {**info, "state": self._read_state(self.env)}
+        return obs, {**info, "state": self._read_state(self.env.unwrapped)}
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        return obs, reward, terminated, truncated, {**info, "state": self._read_state(self.env)}
+        state = self._read_state(self.env.unwrapped)
+        return obs, reward, terminated, truncated, {**info, "state": state}
 
 
 def state_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any]) -> gymnasium.Env:

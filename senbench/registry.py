@@ -41,9 +41,10 @@ class Registry(Generic[T]):
         name = spec.name
         if name in self._entries:
             first = self._entries[name][1]
+            both = " and ".join(sorted({first.distribution, origin.distribution}))
             raise PluginError(
-                f"{self.kind} '{name}' is registered twice: by {first.distribution} and by "
-                f"{origin.distribution}. Uninstall one, or rename one of them."
+                f"{self.kind} '{name}' is registered twice, by {both}. Uninstall one of "
+                "them, or rename what one of them registers."
             )
         self._entries[name] = (spec, origin)
 

@@ -12,11 +12,14 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import time
+from collections import Counter
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from queue import Empty
+from typing import Any
 
 from senbench import plugins
 from senbench.cell import CellOutcome, RunInfo, record_lost_cell, run_cell
@@ -97,9 +100,13 @@ def _init_worker(threads: int, queue, extra_plugins: list[str]) -> None:
 
 
 def _worker_run(cell: Cell, directory: Path, info: RunInfo, threads: int) -> CellOutcome:
-    _queue.put(("started", cell.id, cell.label, cell.config["budget"]))
+    _queue.put(("started", cell.id, cell.label, cell.config["budget"], os.getpid()))
     return run_cell(cell, directory, info, threads,
                     lambda *args: _queue.put(("update", *args)))
+
+
+MAX_REQUEUES = 3
+"""How often a cell whose worker was stopped because another worker died is run again."""
 
 
 def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int,
@@ -107,9 +114,11 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
     context = mp.get_context("spawn")
     queue = context.Queue()
     threads = threads_per_worker(workers)
+    requeued: Counter[str] = Counter()
     remaining = list(todo)
     while remaining:
-        running: set[str] = set()
+        running: dict[str, int] = {}  # cell id -> pid of the worker running it
+        processes: dict[int, Any] = {}
         executor = ProcessPoolExecutor(
             workers, mp_context=context, initializer=_init_worker,
             initargs=(threads, queue, plugins.registered_module_names()),
@@ -118,21 +127,25 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
             executor.submit(_worker_run, c, directory, info, threads): c for c in remaining
         }
         remaining = []
+        processes.update(getattr(executor, "_processes", None) or {})
         try:
             while futures:
                 done, _ = wait(futures, timeout=0.2, return_when=FIRST_COMPLETED)
+                processes.update(getattr(executor, "_processes", None) or {})
                 _drain(queue, progress, running)
                 for future in done:
                     cell = futures.pop(future)
                     try:
                         outcome = future.result()
                     except BrokenProcessPool:
-                        if cell.id in running:
-                            outcome = record_lost_cell(cell, directory, info, threads)
-                        else:
+                        reason = _death(running.get(cell.id), processes)
+                        retry = reason == "stopped" and requeued[cell.id] < MAX_REQUEUES
+                        if reason is None or retry:
+                            requeued[cell.id] += retry
                             remaining.append(cell)
                             continue
-                    running.discard(cell.id)
+                        outcome = record_lost_cell(cell, directory, info, threads, reason)
+                    running.pop(cell.id, None)
                     summary.outcomes.append(outcome)
                     progress.finished(outcome)
         except BaseException:
@@ -141,15 +154,36 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
         executor.shutdown(wait=True)
 
 
-def _drain(queue, progress: GridProgress, running: set[str]) -> None:
+def _death(pid: int | None, processes: dict[int, Any]) -> str | None:
+    """Why the worker running a cell is gone after the pool broke: None if the cell never
+    started, "stopped" if the pool terminated it because another worker died, else how it
+    died."""
+    if pid is None:
+        return None
+    process = processes.get(pid)
+    if process is None:
+        return "died"
+    # The pool's own thread reaps its workers too; whichever waits first gets the status.
+    deadline = time.monotonic() + 10
+    while (code := process.exitcode) is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if code == -signal.SIGTERM:
+        return "stopped"
+    if code is not None and code < 0:
+        return f"was killed by signal {-code} ({signal.Signals(-code).name}; out of memory?)"
+    return f"exited with code {code}"
+
+
+def _drain(queue, progress: GridProgress, running: dict[str, int]) -> None:
     while True:
         try:
             event, *args = queue.get_nowait()
         except Empty:
             return
         if event == "started":
-            running.add(args[0])
-            progress.started(*args)
+            cell_id, label, budget, pid = args
+            running[cell_id] = pid
+            progress.started(cell_id, label, budget)
         else:
             progress.update(*args)
 

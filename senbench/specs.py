@@ -24,7 +24,8 @@ class EnvSpec:
     make: Callable[..., Any]
     """``make(max_episode_steps=..., **options) -> gymnasium.Env`` observing the state vector."""
     physical_state: Callable[[Any], np.ndarray]
-    """Reads the physical state (``state_labels`` order) from the unwrapped env."""
+    """Reads the physical state (``state_labels`` order) from the env, which senbench
+    passes unwrapped (gymnasium wrappers do not forward attributes such as ``state``)."""
     state_labels: tuple[str, ...]
     state_low: tuple[float, ...]
     state_high: tuple[float, ...]
@@ -53,7 +54,9 @@ class AgentSpec:
     name: str
     make: Callable[[AgentContext], Agent]
     config: type
-    """A dataclass; its fields are the hyperparameters and their defaults."""
+    """A dataclass; its fields are the hyperparameters and their defaults. Suites are
+    checked against it before anything runs: unknown keys, wrong types, and whatever its
+    ``__post_init__`` raises (range checks) are validation errors."""
     actions: frozenset[str]
     observations: frozenset[str]
     defaults: Mapping[str, AgentDefaults] = field(default_factory=dict)

@@ -142,7 +142,7 @@ def load_suite(path: str | Path, registries: Registries) -> Suite:
     problems: list[str] = []
     cells = _expand(model, source, registries, problems)
     if problems:
-        raise SuiteError(_join(source, problems))
+        raise SuiteError(_join(source, list(dict.fromkeys(problems))))
     return Suite(model, source, cells)
 
 
@@ -231,11 +231,11 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
             defaults = agent.defaults.get(env_name)
             source_note = defaults.source if defaults else "agent defaults"
             for variant, overrides in _variants(model.variants.get(method_name, {})):
-                hyperparams, encoder, hp_loc = _apply_variant(
+                hyperparams, encoder, where = _apply_variant(
                     method_name, method, overrides, problem
                 )
                 merged = {**(defaults.values if defaults else {}), **hyperparams}
-                resolved = _resolve_config(agent, merged, hp_loc, problem)
+                resolved = _resolve_config(agent, merged, where, problem)
                 if resolved is None:
                     continue
                 for seed in model.seeds:
@@ -309,22 +309,26 @@ def _check_method(name: str, method: MethodEntry, regs: Registries, problem):
 
 
 def _apply_variant(method_name: str, method: MethodEntry, overrides: dict[str, Any], problem):
-    """The method's hyperparams and encoder with a variant's values in, and where a bad
-    hyperparameter would be reported."""
+    """The method's hyperparams and encoder with a variant's values in, and a function
+    giving where in the file each hyperparameter was set."""
     hyperparams = dict(method.hyperparams)
     encoder = method.encoder.model_dump() if method.encoder else None
-    hp_loc: Loc = ("methods", method_name, "hyperparams")
+    from_variant: dict[str, Loc] = {}
     for path, value in overrides.items():
         head, _, field = path.partition(".")
         if head == "hyperparams" and field:
             hyperparams[field] = value
-            hp_loc = ("variants", method_name, path)
+            from_variant[field] = ("variants", method_name, path)
         elif head == "encoder" and encoder is not None and field in encoder:
             encoder[field] = value
         else:
             problem(("variants", method_name, path), "a variant sweeps 'hyperparams.<name>', or "
                     "'encoder.<field>' of a method that has an encoder")
-    return hyperparams, encoder, hp_loc
+
+    def where(key: str) -> Loc:
+        return from_variant.get(key, ("methods", method_name, "hyperparams", key))
+
+    return hyperparams, encoder, where
 
 
 def _variants(axes: dict[str, list[Any]]):
@@ -337,18 +341,20 @@ def _variants(axes: dict[str, list[Any]]):
         yield ",".join(f"{p}={v}" for p, v in overrides.items()), overrides
 
 
-def _resolve_config(agent, params: dict[str, Any], loc: Loc, problem) -> dict[str, Any] | None:
+def _resolve_config(agent, params: dict[str, Any], where, problem) -> dict[str, Any] | None:
     fields = [f.name for f in dataclasses.fields(agent.config)]
     unknown = [k for k in params if k not in fields]
     for key in unknown:
-        problem((*loc, key), unknown_name_message(f"{agent.name} hyperparameter", key, fields))
+        problem(where(key), unknown_name_message(f"{agent.name} hyperparameter", key, fields))
     if unknown:
         return None
     try:
         config = pydantic.TypeAdapter(agent.config).validate_python(params)
     except pydantic.ValidationError as exc:
         for err in exc.errors():
-            problem((*loc, *err["loc"]), f"{err['msg']} (got {err.get('input')!r})")
+            loc = err["loc"]
+            at = (*where(str(loc[0])), *loc[1:]) if loc else where("")[:-1]
+            problem(at, f"{err['msg']} (got {err.get('input')!r})")
         return None
     return dataclasses.asdict(config)
 

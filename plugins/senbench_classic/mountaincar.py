@@ -17,7 +17,7 @@ def make(max_episode_steps: int = 200, goal_velocity: float = 0.0) -> gymnasium.
 
 
 def physical_state(env: gymnasium.Env) -> np.ndarray:
-    return np.asarray(env.unwrapped.state, dtype=np.float64)
+    return np.asarray(env.state, dtype=np.float64)
 
 
 MOUNTAINCAR = EnvSpec(

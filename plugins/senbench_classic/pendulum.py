@@ -16,7 +16,7 @@ def make(max_episode_steps: int = 200, g: float = 10.0) -> gymnasium.Env:
 
 
 def physical_state(env: gymnasium.Env) -> np.ndarray:
-    theta, theta_dot = env.unwrapped.state
+    theta, theta_dot = env.state
     wrapped = (theta + np.pi) % (2 * np.pi) - np.pi
     return np.array([wrapped, theta_dot], dtype=np.float64)
 

@@ -1,0 +1,80 @@
+"""A plugin used by the tests: agents that fail, or die, on purpose."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import senbench
+from senbench import AgentSpec
+
+
+@dataclass
+class CrashConfig:
+    after: int = 10
+    """Frames before the agent raises."""
+
+
+class CrashAgent:
+    def __init__(self, ctx):
+        self.env = ctx.make_env()
+        self.after = ctx.config.after
+        self.seed = ctx.seed
+
+    def act(self, observation):
+        return 0
+
+    def learn(self, budget, recorder):
+        self.env.reset(seed=self.seed)
+        for steps in range(budget + 1):
+            if steps == self.after:
+                raise ValueError(f"crash agent crashed on purpose at frame {steps}")
+            if not recorder.step(steps):
+                return
+            self.env.step(0)
+
+
+class DieAgent(CrashAgent):
+    """Kills its own process: what an out-of-memory kill looks like to the runner."""
+
+    def learn(self, budget, recorder):
+        os._exit(17)
+
+
+@dataclass
+class SlowConfig:
+    sleep_s: float = 0.01
+    """Seconds per frame."""
+
+
+class SlowAgent:
+    """Acts at a known pace, so that a test can interrupt a run in the middle."""
+
+    def __init__(self, ctx):
+        self.env = ctx.make_env()
+        self.sleep_s = ctx.config.sleep_s
+        self.seed = ctx.seed
+
+    def act(self, observation):
+        return 1
+
+    def learn(self, budget, recorder):
+        import time
+
+        self.env.reset(seed=self.seed)
+        steps = 0
+        while recorder.step(steps):
+            time.sleep(self.sleep_s)
+            _, _, terminated, truncated, _ = self.env.step(1)
+            steps += 1
+            if terminated or truncated:
+                recorder.episode(steps, -1.0, 1)
+                self.env.reset()
+
+
+@senbench.hookimpl
+def register_agents(register):
+    kinds = frozenset({"discrete"})
+    register(AgentSpec("crash", CrashAgent, CrashConfig, kinds, frozenset({"state"})))
+    register(AgentSpec("die", DieAgent, CrashConfig, kinds, frozenset({"state"})))
+    register(AgentSpec("slow", SlowAgent, SlowConfig, kinds, frozenset({"state"})))

@@ -1,0 +1,185 @@
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pyarrow.parquet as pq
+import pytest
+
+from senbench.plugins import registries
+from senbench.results import SCHEMA, finished_status, read_results
+from senbench.runner import run_suite
+from senbench.suite import load_suite
+
+SARSA = """\
+name: small
+envs:
+  mountaincar: {}
+methods:
+  sarsa-state: {agent: sarsa}
+seeds: 3
+budget: 1500
+eval: {every: 500, episodes: 2}
+"""
+
+
+def run(write_suite, tmp_path, text, **kwargs):
+    suite = load_suite(write_suite(text), registries())
+    return suite, run_suite(suite, tmp_path / "results", **kwargs)
+
+
+def cell_files(tmp_path, suite="small"):
+    return sorted((tmp_path / "results" / suite / "cells").glob("*.parquet"))
+
+
+def test_each_cell_writes_one_file_with_the_documented_schema(write_suite, tmp_path):
+    suite, summary = run(write_suite, tmp_path, SARSA)
+    assert summary.ok == 3 and not summary.failed
+    files = cell_files(tmp_path)
+    assert [f.stem for f in files] == sorted(c.id for c in suite.cells)
+    for path in files:
+        table = pq.read_table(path)
+        assert table.schema.equals(SCHEMA)
+        kinds = table["kind"].to_pylist()
+        assert kinds.count("cell") == 1
+        evals = [s for k, s in zip(kinds, table["step"].to_pylist(), strict=True) if k == "eval"]
+        assert evals == [0, 500, 1000, 1500]
+        assert set(table["status"].to_pylist()) == {"ok"}
+        row = table.slice(0, 1).to_pylist()[0]
+        assert row["gymnasium_version"] and row["torch_version"] and row["host"]
+        assert row["peak_rss_mb"] > 10 and row["cell_wall_s"] > 0
+        assert row["started_at"] <= row["ended_at"]
+    assert (tmp_path / "results" / "small" / "suite.yaml").exists()
+
+
+def test_resume_skips_finished_cells_and_ignores_a_stray_temp_file(write_suite, tmp_path):
+    suite, _ = run(write_suite, tmp_path, SARSA)
+    files = cell_files(tmp_path)
+    before = {f: (f.stat().st_mtime_ns, f.read_bytes()) for f in files}
+    # A kill mid-write leaves a temp file named after a (dead) writer's pid.
+    stray = files[0].parent / f".{files[0].stem}.999999999.tmp"
+    stray.write_bytes(b"half a parquet file")
+    assert len(read_results(tmp_path / "results" / "small")) > 0  # readers ignore it
+    _, summary = run(write_suite, tmp_path, SARSA)
+    assert summary.skipped == 3 and summary.outcomes == []
+    assert {f: (f.stat().st_mtime_ns, f.read_bytes()) for f in cell_files(tmp_path)} == before
+    assert not stray.exists()
+    _, summary = run(write_suite, tmp_path, SARSA, force=True)
+    assert summary.skipped == 0 and summary.ok == 3
+
+
+FAILING = """\
+name: small
+envs:
+  mountaincar: {}
+methods:
+  sarsa-state: {agent: sarsa}
+  crash-state: {agent: crash, hyperparams: {after: 700}}
+seeds: 1
+budget: 1500
+eval: {every: 500, episodes: 2}
+"""
+
+
+def test_a_failing_cell_is_recorded_and_the_grid_goes_on(write_suite, tmp_path, test_agents):
+    suite, summary = run(write_suite, tmp_path, FAILING)
+    assert summary.ok == 1 and len(summary.failed) == 1
+    failed = next(c for c in suite.cells if c.method == "crash-state")
+    path = tmp_path / "results" / "small" / "cells" / f"{failed.id}.parquet"
+    assert finished_status(path) == "failed"
+    table = pq.read_table(path).to_pandas()
+    assert "crashed on purpose at frame 700" in table["error"].iloc[0]
+    assert list(table.loc[table["kind"] == "eval", "step"]) == [0, 500]  # rows before the crash
+    # Failed cells are tried again on the next run; finished ones are not.
+    _, again = run(write_suite, tmp_path, FAILING)
+    assert again.skipped == 1 and [o.label for o in again.outcomes] == [failed.label]
+
+
+def test_two_workers_give_the_same_curves_as_serial(write_suite, tmp_path, test_agents):
+    _, serial = run(write_suite, tmp_path, SARSA)
+    first = read_results(tmp_path / "results" / "small")
+    _, parallel = run(write_suite, tmp_path, SARSA, workers=2, force=True)
+    assert parallel.ok == 3
+    second = read_results(tmp_path / "results" / "small")
+    columns = ["cell_id", "kind", "step", "return", "length"]
+    key = ["cell_id", "kind", "step"]
+    a = first[columns].sort_values(key).reset_index(drop=True)
+    b = second[columns].sort_values(key).reset_index(drop=True)
+    assert a.equals(b)
+    assert set(second["threads"]) == {max(1, (os.cpu_count() or 1) // 2)}
+
+
+def test_a_worker_that_dies_fails_its_cell_only(write_suite, tmp_path, test_agents):
+    text = FAILING.replace("crash-state: {agent: crash, hyperparams: {after: 700}}",
+                           "die-state: {agent: die}").replace("seeds: 1", "seeds: 2")
+    suite, summary = run(write_suite, tmp_path, text, workers=2)
+    assert summary.ok == 2 and len(summary.failed) == 2
+    assert all(o.error == "the worker process running this cell exited with code 17"
+               for o in summary.failed)
+    assert len(cell_files(tmp_path)) == 4
+
+
+SLOW = """\
+name: slow
+envs:
+  mountaincar: {}
+methods:
+  slow-state: {agent: slow, hyperparams: {sleep_s: 0.002}}
+seeds: 6
+budget: 600
+eval: {every: 300, episodes: 1}
+"""
+
+
+def _wait_for_files(directory, count, process, timeout=90):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if len(list(directory.glob("*.parquet"))) >= count:
+            return
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.05)
+    pytest.fail(f"no {count} result files after {timeout} s")
+
+
+def test_sigkill_then_rerun_gives_every_cell_exactly_once(write_suite, tmp_path, cli_env):
+    suite_file = write_suite(SLOW)
+    results = tmp_path / "results"
+    command = [sys.executable, "-m", "senbench", "run", str(suite_file), "--workers", "2",
+               "--results", str(results)]
+    process = subprocess.Popen(command, env=cli_env, start_new_session=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    cells = results / "slow" / "cells"
+    _wait_for_files(cells, 2, process)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+    time.sleep(0.5)
+    finished = {f: f.read_bytes() for f in cells.glob("*.parquet")}
+    assert 2 <= len(finished) < 6
+    done = subprocess.run(command, env=cli_env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert f"{len(finished)} already done" in done.stdout
+    files = sorted(cells.glob("*.parquet"))
+    assert len(files) == 6 and not list(cells.glob(".*.tmp"))
+    for path, content in finished.items():
+        assert path.read_bytes() == content  # not recomputed
+    assert all(finished_status(f) == "ok" for f in files)
+
+
+def test_ctrl_c_stops_cleanly_leaving_only_finished_cells(write_suite, tmp_path, cli_env):
+    suite_file = write_suite(SLOW.replace("sleep_s: 0.002", "sleep_s: 0.004"))
+    results = tmp_path / "results"
+    command = [sys.executable, "-m", "senbench", "run", str(suite_file), "--workers", "2",
+               "--results", str(results)]
+    process = subprocess.Popen(command, env=cli_env, start_new_session=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    cells = results / "slow" / "cells"
+    _wait_for_files(cells, 1, process)
+    os.killpg(process.pid, signal.SIGINT)  # what Ctrl-C sends to the foreground group
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stdout + stderr
+    assert "Traceback" not in stderr and "run the same command again to resume" in stderr
+    files = list(cells.glob("*.parquet"))
+    assert 1 <= len(files) < 6
+    assert all(finished_status(f) == "ok" for f in files)
+    assert not list(cells.glob(".*.tmp"))

@@ -1,0 +1,162 @@
+import subprocess
+import sys
+
+import pytest
+
+from senbench.errors import SuiteError
+from senbench.plugins import registries
+from senbench.suite import load_suite
+
+GOOD = """\
+name: grid
+envs:
+  mountaincar: {max_episode_steps: 300, threshold: -120}
+  pendulum: {budget: 4000}
+methods:
+  sarsa-state:
+    agent: sarsa
+    envs: [mountaincar]
+    hyperparams: {alpha: 0.8}
+  ppo-state:
+    agent: ppo
+    observation: state
+seeds: [0, 1, 2]
+budget: 2000
+eval: {every: 1000, episodes: 2}
+variants:
+  sarsa-state:
+    hyperparams.trace_decay: [0.8, 0.9]
+"""
+
+
+def load(write_suite, text):
+    return load_suite(write_suite(text), registries())
+
+
+def test_a_good_suite_expands_into_its_grid(write_suite):
+    suite = load(write_suite, GOOD)
+    # sarsa: 1 env x 2 variants x 3 seeds; ppo: 2 envs x 3 seeds
+    assert len(suite.cells) == 6 + 6
+    sarsa = [c for c in suite.cells if c.method == "sarsa-state"]
+    assert {c.variant for c in sarsa} == {"hyperparams.trace_decay=0.8",
+                                          "hyperparams.trace_decay=0.9"}
+    cell = sarsa[0]
+    assert cell.config["hyperparams"]["alpha"] == 0.8  # the suite overrides the env default
+    assert cell.config["hyperparams"]["tilings"] == 16  # sarsa's mountaincar default
+    assert cell.config["env"] == {"name": "mountaincar", "max_episode_steps": 300,
+                                  "options": {}, "threshold": -120}
+    ppo_pendulum = next(c for c in suite.cells if c.env == "pendulum")
+    assert ppo_pendulum.config["budget"] == 4000
+    assert ppo_pendulum.config["hyperparams"]["n_envs"] == 4  # zoo default for Pendulum
+    assert "rl-baselines3-zoo" in ppo_pendulum.hyperparams_source
+
+
+def test_cell_ids_are_stable_and_follow_the_config(write_suite):
+    ids = [c.id for c in load(write_suite, GOOD).cells]
+    assert ids == [c.id for c in load(write_suite, GOOD).cells]
+    assert len(set(ids)) == len(ids)
+    reordered = GOOD.replace("seeds: [0, 1, 2]\nbudget: 2000\n", "budget: 2000\nseeds: [0, 1, 2]\n")
+    assert sorted(ids) == sorted(c.id for c in load(write_suite, reordered).cells)
+    changed = load(write_suite, GOOD.replace("alpha: 0.8", "alpha: 0.7")).cells
+    moved = {c.id for c in changed} - set(ids)
+    assert len(moved) == 6 and all(c.method == "sarsa-state" for c in changed if c.id in moved)
+
+
+def test_seed_count_means_seeds_from_zero(write_suite):
+    suite = load(write_suite, GOOD.replace("seeds: [0, 1, 2]", "seeds: 2"))
+    assert sorted({c.seed for c in suite.cells}) == [0, 1]
+
+
+BAD = {
+    "typo in a key": (
+        GOOD.replace("    agent: sarsa\n", "    agnet: sarsa\n"),
+        ["suite.yaml:7", "methods.sarsa-state.agnet", "Did you mean 'agent'?"],
+    ),
+    "unknown agent": (
+        GOOD.replace("agent: sarsa", "agent: sarsaa"),
+        ["suite.yaml:7", "methods.sarsa-state.agent", "unknown agent 'sarsaa'",
+         "Known agents: ppo, sarsa"],
+    ),
+    "unknown env": (
+        GOOD.replace("  pendulum: {budget: 4000}", "  cartpole: {}"),
+        ["suite.yaml:4", "envs.cartpole", "Known envs: mountaincar, pendulum"],
+    ),
+    "unknown hyperparameter": (
+        GOOD.replace("alpha: 0.8", "alhpa: 0.8"),
+        ["suite.yaml:9", "hyperparams.alhpa", "Did you mean 'alpha'?"],
+    ),
+    "wrong type": (
+        GOOD.replace("alpha: 0.8", "alpha: fast"),
+        ["suite.yaml:9", "hyperparams.alpha", "'fast'"],
+    ),
+    "discrete agent on a continuous env": (
+        GOOD.replace("    envs: [mountaincar]\n", ""),
+        ["methods.sarsa-state", "continuous actions", "envs: [...]"],
+    ),
+    "observation not available": (
+        GOOD.replace("    observation: state", "    observation: pixel"),
+        ["suite.yaml:12", "unknown observation 'pixel'"],
+    ),
+    "duplicate key": (
+        GOOD.replace("seeds: [0, 1, 2]", "seeds: [0, 1, 2]\nseeds: [3]"),
+        ["suite.yaml:14", "'seeds' appears twice (first on line 13)"],
+    ),
+    "not yaml": (
+        GOOD.replace("eval: {every: 1000, episodes: 2}", "eval: {every: 1000, episodes: 2"),
+        ["suite.yaml:", "not valid YAML"],
+    ),
+    "missing key": (
+        GOOD.replace("budget: 2000\n", ""),
+        ["budget: required key is missing"],
+    ),
+    "evaluation sparser than the budget": (
+        GOOD.replace("every: 1000", "every: 3000"),
+        ["eval.every", "budget on mountaincar is 2000"],
+    ),
+    "variant of an unknown parameter": (
+        GOOD.replace("hyperparams.trace_decay", "hyperparams.trace_decy"),
+        ["variants.sarsa-state.hyperparams.trace_decy", "Did you mean 'trace_decay'?"],
+    ),
+    "env option unknown": (
+        GOOD.replace("{max_episode_steps: 300, threshold: -120}",
+                     "{max_episode_steps: 300, options: {goal_speed: 0.1}}"),
+        ["envs.mountaincar.options.goal_speed", "goal_velocity"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_a_bad_suite_is_refused_with_a_located_message(write_suite, case):
+    text, expected = BAD[case]
+    with pytest.raises(SuiteError) as info:
+        load(write_suite, text)
+    message = str(info.value)
+    for fragment in expected:
+        assert fragment in message, f"{fragment!r} not in:\n{message}"
+
+
+def test_cli_refuses_a_bad_suite_with_exit_2_no_traceback_and_writes_nothing(write_suite,
+                                                                               tmp_path):
+    path = write_suite(BAD["typo in a key"][0])
+    results = tmp_path / "results"
+    for command in (["validate", str(path)], ["run", str(path), "--results", str(results)]):
+        done = subprocess.run([sys.executable, "-m", "senbench", *command],
+                              capture_output=True, text=True, env={"COLUMNS": "200",
+                                                                   **_env()})
+        assert done.returncode == 2, done.stderr
+        assert "Traceback" not in done.stderr + done.stdout
+        assert "suite.yaml:7" in done.stderr and "agnet" in done.stderr
+    assert not results.exists()
+
+
+def _env():
+    import os
+
+    return dict(os.environ)
+
+
+def test_cli_validate_counts_the_cells(write_suite):
+    done = subprocess.run([sys.executable, "-m", "senbench", "validate", str(write_suite(GOOD))],
+                          capture_output=True, text=True, env={**_env(), "COLUMNS": "200"})
+    assert done.returncode == 0, done.stderr
+    assert "12 cells" in done.stdout
