@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import os
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -19,8 +20,11 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
-out = Console()
-err = Console(stderr=True)
+# Piped output (make demo, CI logs) gets tables 120 columns wide rather than rich's 80;
+# COLUMNS still wins. Messages are never hard-wrapped, so they stay greppable.
+_width = None if sys.stdout.isatty() or os.environ.get("COLUMNS") else 120
+out = Console(width=_width, soft_wrap=True)
+err = Console(stderr=True, soft_wrap=True)
 
 
 def user_errors(command):

@@ -1,5 +1,6 @@
 """Per-cell metrics of an evaluation curve.
 
+- initial return: the evaluation return at frame 0, before any learning;
 - final return: mean evaluation return over the last ``FINAL_WINDOW`` evaluations;
 - steps-to-threshold: the first evaluation step from which the trailing mean of
   ``THRESHOLD_WINDOW`` evaluations stays at or above the threshold until the end of the
@@ -52,6 +53,7 @@ def cell_metrics(results: pd.DataFrame) -> pd.DataFrame:
             "cell_id": cell_id, "env": cell["env"], "method": cell["method"],
             "variant": cell["variant"], "seed": cell["seed"], "status": cell["status"],
             "threshold": cell["threshold"], "budget": cell["budget"],
+            "initial_return": float(returns[0]) if ok else np.nan,
             "final_return": final_return(returns) if ok else np.nan,
             "steps_to_threshold": steps_to_threshold(steps, returns, cell["threshold"])
             if ok else np.nan,

@@ -22,6 +22,8 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
             "env": env, "method": method, "variant": variant,
             "threshold": group["threshold"].iloc[0], "budget": int(group["budget"].max()),
             "seeds_ok": len(ok), "seeds_failed": int((group["status"] != "ok").sum()),
+            "initial_mean": _mean(ok["initial_return"]),
+            "initial_std": _std(ok["initial_return"]),
             "final_mean": _mean(ok["final_return"]), "final_std": _std(ok["final_return"]),
             "reached": len(reached),
             "steps_mean": _mean(reached), "steps_std": _std(reached),
@@ -47,15 +49,18 @@ def _pm(mean: float, std: float, digits: int = 1) -> str:
 def render(summary: pd.DataFrame, console: Console) -> None:
     for env, rows in summary.groupby("env", sort=True):
         table = Table(
-            title=f"{env}: threshold {rows['threshold'].iloc[0]:g}, "
+            title=f"{env}: evaluation return; threshold {rows['threshold'].iloc[0]:g}, "
             f"budget {rows['budget'].max():,} frames",
-            caption=f"mean ± std over finished seeds; final = last {FINAL_WINDOW} evaluations; "
-            f"steps to threshold: trailing mean of {THRESHOLD_WINDOW} evaluations stays above it",
+            caption=f"mean ± std over finished seeds. final: last {FINAL_WINDOW} evaluations. "
+            f"frames to threshold: from where the trailing mean of {THRESHOLD_WINDOW} "
+            "evaluations stays at or above it (seeds reaching it / finished). AUC: mean "
+            "return over the budget.",
         )
-        table.add_column("method")
-        table.add_column("final return", justify="right")
+        table.add_column("method", no_wrap=True)
+        table.add_column("at frame 0", justify="right")
+        table.add_column("final", justify="right")
         table.add_column("frames to threshold", justify="right")
-        table.add_column("AUC (mean return)", justify="right")
+        table.add_column("AUC", justify="right")
         table.add_column("seeds ok / failed", justify="right")
         for row in rows.itertuples():
             name = row.method + (f" [{row.variant}]" if row.variant else "")
@@ -64,6 +69,7 @@ def render(summary: pd.DataFrame, console: Console) -> None:
             else:
                 steps = f"not reached (0/{row.seeds_ok})"
             failed = f"[red]{row.seeds_failed}[/]" if row.seeds_failed else "0"
-            table.add_row(name, _pm(row.final_mean, row.final_std), steps,
+            table.add_row(name, _pm(row.initial_mean, row.initial_std),
+                          _pm(row.final_mean, row.final_std), steps,
                           _pm(row.auc_mean, row.auc_std), f"{row.seeds_ok} / {failed}")
         console.print(table)

@@ -161,7 +161,7 @@ def _format_pydantic(exc: pydantic.ValidationError, source: SuiteSource) -> str:
         loc = tuple(err["loc"])
         if err["type"] == "extra_forbidden":
             known = _fields_at(loc[:-1])
-            msg = "unknown key; " + unknown_name_message("key", str(loc[-1]), known)
+            msg = unknown_name_message("key", str(loc[-1]), known)
         elif err["type"] == "missing":
             msg = "required key is missing"
         else:

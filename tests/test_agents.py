@@ -42,10 +42,10 @@ def test_sarsa_learns_mountaincar_on_the_state(seed):
     assert rolling.max() >= -150
     env = registries().envs.get("mountaincar").make()
     obs, _ = env.reset(seed=123)
-    for length in range(1, 201):
+    length, terminated, truncated = 0, False, False
+    while not (terminated or truncated):
         obs, _, terminated, truncated, _ = env.step(learner.act(obs))
-        if terminated or truncated:
-            break
+        length += 1
     assert terminated and length < 180
 
 

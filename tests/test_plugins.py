@@ -53,7 +53,8 @@ def test_duplicate_through_the_plugin_manager():
     plugin = DuplicateMountainCar()
     plugins.register_plugin(plugin, distribution="senbench-copycat")
     try:
-        with pytest.raises(PluginError, match="mountaincar' is registered twice, by senbench and senbench-copycat"):
+        expected = "mountaincar' is registered twice, by senbench and senbench-copycat"
+        with pytest.raises(PluginError, match=expected):
             plugins.registries()
     finally:
         plugins.unregister_plugin(plugin)
@@ -81,7 +82,7 @@ def test_every_hook_is_documented_in_the_readme():
     hooks = [name for name in dir(senbench.hookspecs) if name.startswith("register_")]
     assert len(hooks) == 4
     for hook in hooks:
-        assert f"`{hook}`" in readme, f"{hook} is not documented in README.md"
+        assert f"`{hook}(register)`" in readme, f"{hook} is not documented in README.md"
     assert register_agents.__doc__
 
 

@@ -1,6 +1,6 @@
-"""docs/write-a-plugin.md works as written: its package, installed as pip would leave it
-(a dist-info with an entry point, no pip run), shows up in ``senbench plugins`` and runs its
-suite next to the built-in env and agent."""
+"""The README's "Write a plugin" section works as written: its package, installed as pip
+would leave it (a dist-info with an entry point, no pip run), shows up in
+``senbench plugins`` and runs its suite next to the built-in env and agent."""
 
 import os
 import re
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-DOC = Path(__file__).parent.parent / "docs" / "write-a-plugin.md"
+DOC = Path(__file__).parent.parent / "README.md"
 BLOCK = re.compile(r"^File: `([^`]+)`\n+```(\w+)\n(.*?)^```$", re.MULTILINE | re.DOTALL)
 PACKAGE = "senbench-acrobot/senbench_acrobot/__init__.py"
 
@@ -89,6 +89,6 @@ def test_the_doc_plugin_lists_runs_and_reports(installed, tmp_path):
 
     report = senbench(env, "report", str(results / "acrobot-demo"), cwd=tmp_path)
     assert report.returncode == 0, report.stderr
-    assert "acrobot: threshold -100" in report.stdout
-    assert "mountaincar: threshold -110" in report.stdout
+    assert "acrobot: evaluation return; threshold -100" in report.stdout
+    assert "mountaincar: evaluation return; threshold -110" in report.stdout
     assert "random" in report.stdout and "sarsa-state" in report.stdout

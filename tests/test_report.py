@@ -1,0 +1,73 @@
+import subprocess
+import sys
+
+import pytest
+
+from senbench.errors import ResultsError
+from senbench.plugins import registries
+from senbench.report import summarize
+from senbench.results import read_results
+from senbench.runner import run_suite
+from senbench.suite import load_suite
+
+SUITE = """\
+name: rep
+envs:
+  mountaincar: {}
+methods:
+  sarsa-state: {agent: sarsa}
+  crash-state: {agent: crash, hyperparams: {after: 5}}
+seeds: 2
+budget: 1000
+eval: {every: 500, episodes: 1}
+"""
+
+
+def test_summary_counts_finished_and_failed_seeds(write_suite, tmp_path, test_agents):
+    run_suite(load_suite(write_suite(SUITE), registries()), tmp_path)
+    summary = summarize(read_results(tmp_path / "rep")).set_index("method")
+    assert summary.loc["sarsa-state", "seeds_ok"] == 2
+    assert summary.loc["sarsa-state", "seeds_failed"] == 0
+    assert summary.loc["crash-state", "seeds_ok"] == 0
+    assert summary.loc["crash-state", "seeds_failed"] == 2
+    assert summary.loc["sarsa-state", "initial_mean"] == -200  # untrained: never reaches the flag
+
+
+def test_report_cli_prints_a_table_per_env(write_suite, tmp_path):
+    text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
+    run_suite(load_suite(write_suite(text), registries()), tmp_path)
+    done = subprocess.run([sys.executable, "-m", "senbench", "report", str(tmp_path / "rep")],
+                          capture_output=True, text=True, env={"COLUMNS": "200",
+                                                               "PATH": "/usr/bin:/bin"})
+    assert done.returncode == 0, done.stderr
+    assert "mountaincar: evaluation return; threshold -110" in done.stdout
+    assert "sarsa-state" in done.stdout and "2 / 0" in done.stdout
+
+
+def test_report_on_a_folder_without_results_says_so(tmp_path):
+    with pytest.raises(ResultsError, match="no cell results"):
+        read_results(tmp_path)
+    done = subprocess.run([sys.executable, "-m", "senbench", "report", str(tmp_path / "none")],
+                          capture_output=True, text=True)
+    assert done.returncode == 2 and "no such results folder" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_results_read_with_one_glob_without_senbench(write_suite, tmp_path):
+    text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
+    run_suite(load_suite(write_suite(text), registries()), tmp_path)
+    glob = str(tmp_path / "rep" / "cells" / "*.parquet")
+    script = f"""
+import sys, glob
+import duckdb, pandas, polars
+n_duck = duckdb.execute("select count(*) from '{glob}' where kind = 'cell'").fetchone()[0]
+n_polars = polars.read_parquet('{glob}').filter(polars.col('kind') == 'cell').height
+frame = pandas.read_parquet(sorted(glob.glob('{glob}')))
+n_pandas = int((frame['kind'] == 'cell').sum())
+assert not any(m.startswith('senbench') for m in sys.modules), 'senbench was imported'
+print(n_duck, n_polars, n_pandas)
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["2", "2", "2"]
