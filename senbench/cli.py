@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import os
+import signal
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -76,6 +77,7 @@ def run(
     from senbench.runner import run_suite
 
     suite = _load(suite_file)
+    signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
     summary = run_suite(suite, results, workers=workers, force=force,
                         progress=GridProgress(err))
     folder = results / suite.name
@@ -93,6 +95,10 @@ def run(
         raise typer.Exit(130)
     if summary.failed:
         raise typer.Exit(1)
+
+
+def _stop_like_ctrl_c(signum, frame) -> None:
+    raise KeyboardInterrupt
 
 
 @app.command()

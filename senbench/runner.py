@@ -12,6 +12,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import threading
 import time
 from collections import Counter
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -94,9 +95,18 @@ _queue = None
 def _init_worker(threads: int, queue, extra_plugins: list[str]) -> None:
     global _queue
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
     _queue = queue
     _set_threads(threads)
     plugins.register_modules(extra_plugins)
+
+
+def _exit_with_parent(parent: int) -> None:
+    """A worker whose runner was killed (SIGKILL cannot be caught) stops too, rather than
+    finishing its cell for nobody."""
+    while os.getppid() == parent:
+        time.sleep(0.5)
+    os._exit(1)
 
 
 def _worker_run(cell: Cell, directory: Path, info: RunInfo, threads: int) -> CellOutcome:
