@@ -23,6 +23,7 @@ import numpy as np
 
 from senbench.evaluation import CellRecorder, Evaluator
 from senbench.observations import make_env
+from senbench.pixels import PixelSpec
 from senbench.plugins import registries
 from senbench.results import write_cell
 from senbench.specs import AgentContext
@@ -83,9 +84,11 @@ def run_cell(cell: Cell, directory: Path, info: RunInfo, threads: int,
         env_spec = regs.envs.get(cfg["env"]["name"])
         agent_spec = regs.agents.get(cfg["agent"])
 
+        pixels = PixelSpec(**cfg["pixels"]) if cfg.get("pixels") else None
+
         def make() -> Any:
             return make_env(env_spec, cfg["observation"], cfg["env"]["max_episode_steps"],
-                            cfg["env"]["options"])
+                            cfg["env"]["options"], pixels)
 
         _seed_everything(cell.seed)
         ctx = AgentContext(agent_spec.config(**cfg["hyperparams"]), env_spec, make, cell.seed,

@@ -113,6 +113,26 @@ def report(results_dir: Annotated[Path, typer.Argument(help="A suite's results f
 
 @app.command()
 @user_errors
+def show(
+    env: Annotated[str, typer.Argument(help="An env plugin's name.")],
+    png: Annotated[Path, typer.Option("--out", help="PNG file to write.")] = Path("frames.png"),
+    frames: Annotated[int, typer.Option(min=1, max=32, help="States to show.")] = 8,
+    height: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    width: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    seed: Annotated[int, typer.Option(help="Seed of the sampled states.")] = 0,
+) -> None:
+    """Sample frames of an env, with gymnasium's frame for the same state beside each."""
+    from senbench.plugins import registries
+    from senbench.show import save_comparison
+
+    spec = registries().envs.get(env)
+    difference = save_comparison(spec, png, frames, (height, width), seed)
+    out.print(f"{png}: {frames} states of {env}; mean |difference| from gymnasium's resized "
+              f"frames: {difference:.2f} grey levels")
+
+
+@app.command()
+@user_errors
 def plugins() -> None:
     """Every env, agent, encoder and sampler installed, and which distribution provided it."""
     from senbench.plugins import registries

@@ -1,6 +1,7 @@
 """Observation pipelines: what an agent sees of an env.
 
-``state`` is the env's own observation vector (the true state). Whatever the observation,
+``state`` is the env's own observation vector (the true state); ``pixels`` a stack of
+grayscale frames (see ``senbench.pixels``). Whatever the observation,
 the physical state travels in ``info["state"]`` so that evaluation and encoder checks can
 read it; an agent never receives it as its observation unless it runs on ``state``.
 """
@@ -13,6 +14,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
+from senbench.pixels import FrameStack, PixelSpec, gymnasium_frames, rendered_frames
 from senbench.specs import EnvSpec
 
 
@@ -33,17 +35,33 @@ class PhysicalStateInfo(gymnasium.Wrapper):
         return obs, reward, terminated, truncated, {**info, "state": state}
 
 
-def state_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any]) -> gymnasium.Env:
+def state_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any],
+              pixels: PixelSpec | None = None) -> gymnasium.Env:
     return PhysicalStateInfo(spec.make(max_episode_steps=max_episode_steps, **options), spec)
 
 
-OBSERVATIONS: dict[str, Callable[[EnvSpec, int, Mapping[str, Any]], gymnasium.Env]] = {
+def pixel_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any],
+              pixels: PixelSpec | None = None) -> gymnasium.Env:
+    """Stacked grayscale frames, from the env plugin's renderer when it has one (and
+    ``pixels.renderer`` is not "gymnasium"), else from gymnasium's ``render()``."""
+    pixels = pixels or PixelSpec()
+    if spec.render is not None and pixels.renderer != "gymnasium":
+        env = spec.make(max_episode_steps=max_episode_steps, **options)
+        draw = rendered_frames(spec.render, pixels)
+    else:
+        env = spec.make(max_episode_steps=max_episode_steps, render_mode="rgb_array", **options)
+        draw = gymnasium_frames(pixels)
+    return FrameStack(PhysicalStateInfo(env, spec), draw, pixels)
+
+
+Builder = Callable[[EnvSpec, int, Mapping[str, Any], PixelSpec | None], gymnasium.Env]
+OBSERVATIONS: dict[str, Builder] = {
     "state": state_env,
+    "pixels": pixel_env,
 }
-"""Observation name → ``build(env_spec, max_episode_steps, options)``."""
+"""Observation name → ``build(env_spec, max_episode_steps, options, pixels)``."""
 
 
-def make_env(
-    spec: EnvSpec, observation: str, max_episode_steps: int, options: Mapping[str, Any]
-) -> gymnasium.Env:
-    return OBSERVATIONS[observation](spec, max_episode_steps, options)
+def make_env(spec: EnvSpec, observation: str, max_episode_steps: int,
+             options: Mapping[str, Any], pixels: PixelSpec | None = None) -> gymnasium.Env:
+    return OBSERVATIONS[observation](spec, max_episode_steps, options, pixels)

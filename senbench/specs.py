@@ -22,7 +22,8 @@ class EnvSpec:
 
     name: str
     make: Callable[..., Any]
-    """``make(max_episode_steps=..., **options) -> gymnasium.Env`` observing the state vector."""
+    """``make(max_episode_steps=..., render_mode=None, **options) -> gymnasium.Env``
+    observing the state vector."""
     physical_state: Callable[[Any], np.ndarray]
     """Reads the physical state (``state_labels`` order) from the env, which senbench
     passes unwrapped (gymnasium wrappers do not forward attributes such as ``state``)."""
@@ -37,6 +38,12 @@ class EnvSpec:
     options: Mapping[str, type] = field(default_factory=dict)
     """Extra keyword options a suite may pass to ``make``, with their types."""
     description: str = ""
+    render: Callable[[np.ndarray, tuple[int, int]], np.ndarray] | None = None
+    """``render(states (B, d), (H, W)) -> (B, H, W) uint8``: grayscale frames of physical
+    states, batched. Without it, pixel observations come from gymnasium's ``render()``."""
+    set_state: Callable[[Any, np.ndarray], None] | None = None
+    """``set_state(unwrapped_env, state)`` puts the env in a physical state (to sample
+    labelled frames, and to compare renderers)."""
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import pydantic
 from pydantic import BaseModel, ConfigDict, Field, PositiveInt, field_validator
@@ -51,11 +51,22 @@ class EncoderEntry(StrictModel):
     config: dict[str, Any] = {}
 
 
+class PixelsEntry(StrictModel):
+    height: Annotated[int, Field(ge=8, le=512)] = 64
+    width: Annotated[int, Field(ge=8, le=512)] = 64
+    stack: Annotated[int, Field(ge=1, le=16)] = 2
+    """Frames per observation, oldest first: one frame shows no velocity."""
+    renderer: Literal["auto", "gymnasium"] = "auto"
+    """auto: the env plugin's renderer if it has one; gymnasium: gymnasium's render()."""
+
+
 class MethodEntry(StrictModel):
     agent: str
     observation: str = "state"
     hyperparams: dict[str, Any] = {}
     encoder: EncoderEntry | None = None
+    pixels: PixelsEntry | None = None
+    """Frame size and stack for pixels / encoded observations (default: the suite's)."""
     envs: list[str] | None = None
     """Run only on these envs (default: every env of the suite)."""
 
@@ -76,6 +87,8 @@ class SuiteModel(StrictModel):
     budget: PositiveInt
     """Frames (environment steps) per cell."""
     eval: EvalEntry
+    pixels: PixelsEntry = PixelsEntry()
+    """Frame size and stack of pixel observations, unless a method sets its own."""
     variants: dict[str, dict[str, list[Any]]] = {}
     """method → {parameter path → values}: one variant per combination of values."""
 
@@ -228,6 +241,9 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
                 "threshold": env_spec.threshold if env_entry.threshold is None
                 else env_entry.threshold,
             }
+            pixels = None  # in the config (and the id) only where frames are drawn
+            if method.observation != "state":
+                pixels = (method.pixels or model.pixels).model_dump()
             defaults = agent.defaults.get(env_name)
             source_note = defaults.source if defaults else "agent defaults"
             for variant, overrides in _variants(model.variants.get(method_name, {})):
@@ -246,6 +262,7 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
                         "observation": method.observation,
                         "hyperparams": resolved,
                         "encoder": encoder,
+                        "pixels": pixels,
                         "variant": overrides,
                         "seed": seed,
                         "budget": env_entry.budget or model.budget,

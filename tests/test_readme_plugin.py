@@ -84,8 +84,8 @@ def test_the_doc_plugin_lists_runs_and_reports(installed, tmp_path):
     results = tmp_path / "results"
     ran = senbench(env, "run", str(suite), "--results", str(results), cwd=tmp_path)
     assert ran.returncode == 0, ran.stdout + ran.stderr
-    assert "3 finished, 0 failed" in ran.stdout
-    assert len(list((results / "acrobot-demo" / "cells").glob("*.parquet"))) == 3
+    assert "4 finished, 0 failed" in ran.stdout
+    assert len(list((results / "acrobot-demo" / "cells").glob("*.parquet"))) == 4
 
     report = senbench(env, "report", str(results / "acrobot-demo"), cwd=tmp_path)
     assert report.returncode == 0, report.stderr

@@ -1,12 +1,16 @@
 """Classic-control tasks of the SEN-DRL paper: MountainCar (discrete) and Pendulum (continuous).
 
 The physics are gymnasium's; this plugin adds what senbench needs to know about each task:
-its physical state, the bounds of that state, and the return that counts as solved.
+its physical state, the bounds of that state, the return that counts as solved, and a fast
+renderer of the state (``renderers.py``).
 """
 
 import senbench
+from senbench_classic.gym_ids import register_gymnasium_ids
 from senbench_classic.mountaincar import MOUNTAINCAR
 from senbench_classic.pendulum import PENDULUM
+
+register_gymnasium_ids()  # senbench/PixelMountainCar-v0, senbench/PixelPendulum-v0
 
 
 @senbench.hookimpl

@@ -8,16 +8,21 @@ import gymnasium
 import numpy as np
 
 from senbench import EnvSpec
+from senbench_classic.renderers import render_mountaincar
 
 
-def make(max_episode_steps: int = 200, goal_velocity: float = 0.0) -> gymnasium.Env:
-    return gymnasium.make(
-        "MountainCar-v0", max_episode_steps=max_episode_steps, goal_velocity=goal_velocity
-    )
+def make(max_episode_steps: int = 200, render_mode: str | None = None,
+         goal_velocity: float = 0.0) -> gymnasium.Env:
+    return gymnasium.make("MountainCar-v0", max_episode_steps=max_episode_steps,
+                          render_mode=render_mode, goal_velocity=goal_velocity)
 
 
 def physical_state(env: gymnasium.Env) -> np.ndarray:
     return np.asarray(env.state, dtype=np.float64)
+
+
+def set_state(env: gymnasium.Env, state: np.ndarray) -> None:
+    env.state = np.asarray(state, dtype=np.float64).copy()
 
 
 MOUNTAINCAR = EnvSpec(
@@ -33,4 +38,6 @@ MOUNTAINCAR = EnvSpec(
     max_episode_steps=200,
     options={"goal_velocity": float},
     description="gymnasium MountainCar-v0 dynamics; 3 discrete actions; reward -1 per step",
+    render=render_mountaincar,
+    set_state=set_state,
 )

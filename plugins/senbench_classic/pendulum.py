@@ -9,16 +9,24 @@ import gymnasium
 import numpy as np
 
 from senbench import EnvSpec
+from senbench_classic.renderers import render_pendulum
 
 
-def make(max_episode_steps: int = 200, g: float = 10.0) -> gymnasium.Env:
-    return gymnasium.make("Pendulum-v1", max_episode_steps=max_episode_steps, g=g)
+def make(max_episode_steps: int = 200, render_mode: str | None = None,
+         g: float = 10.0) -> gymnasium.Env:
+    return gymnasium.make("Pendulum-v1", max_episode_steps=max_episode_steps,
+                          render_mode=render_mode, g=g)
 
 
 def physical_state(env: gymnasium.Env) -> np.ndarray:
     theta, theta_dot = env.state
     wrapped = (theta + np.pi) % (2 * np.pi) - np.pi
     return np.array([wrapped, theta_dot], dtype=np.float64)
+
+
+def set_state(env: gymnasium.Env, state: np.ndarray) -> None:
+    env.state = np.asarray(state, dtype=np.float64).copy()
+    env.last_u = None  # gymnasium draws an arrow for the last torque; there is none
 
 
 PENDULUM = EnvSpec(
@@ -37,4 +45,6 @@ PENDULUM = EnvSpec(
     max_episode_steps=200,
     options={"g": float},
     description="gymnasium Pendulum-v1 dynamics; torque in [-2, 2]; 200 steps per episode",
+    render=render_pendulum,
+    set_state=set_state,
 )
