@@ -10,6 +10,7 @@ every reset, so an agent never sees frames of the previous episode.
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -35,7 +36,7 @@ class PixelSpec:
 
 def to_gray(rgb: np.ndarray) -> np.ndarray:
     """(..., H, W, 3) uint8 RGB → (..., H, W) float32 luma in [0, 255]."""
-    return rgb.astype(np.float32) @ LUMA
+    return np.ascontiguousarray(rgb, dtype=np.float32) @ LUMA
 
 
 @functools.lru_cache(maxsize=32)
@@ -53,7 +54,8 @@ def area_resize(gray: np.ndarray, height: int, width: int) -> np.ndarray:
     """Area-resize (H, W) float frames to (height, width) float32."""
     rows = _area_matrix(gray.shape[-2], height)
     cols = _area_matrix(gray.shape[-1], width)
-    return rows @ gray.astype(np.float32) @ cols.T
+    # A transposed view (pygame's frames are) sends matmul down a path ~10x slower.
+    return rows @ np.ascontiguousarray(gray, dtype=np.float32) @ cols.T
 
 
 def quantize(gray: np.ndarray) -> np.ndarray:
@@ -92,8 +94,16 @@ def rendered_frames(render: Callable[[np.ndarray, tuple[int, int]], np.ndarray],
     return draw
 
 
+def headless_pygame() -> None:
+    """gymnasium's classic-control envs render with pygame, which wants a display (and
+    complains on stderr) unless told there is none. Call before the env renders."""
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+
 def gymnasium_frames(spec: PixelSpec) -> Callable[[gymnasium.Env, dict], np.ndarray]:
     """Frames from gymnasium's own ``render()`` (the env needs render_mode="rgb_array")."""
+    headless_pygame()
 
     def draw(env: gymnasium.Env, info: dict) -> np.ndarray:
         rgb = env.render()

@@ -7,13 +7,12 @@ title gives the mean absolute difference of the last two rows in grey levels.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
 from senbench.errors import SenbenchError
-from senbench.pixels import area_resize, quantize, to_gray
+from senbench.pixels import area_resize, headless_pygame, quantize, to_gray
 from senbench.specs import EnvSpec
 
 
@@ -35,8 +34,7 @@ def compare(spec: EnvSpec, states: np.ndarray, size: tuple[int, int]):
     if spec.render is None or spec.set_state is None:
         raise SenbenchError(f"env '{spec.name}' has no renderer of its own to compare: "
                             "its pixel observations already are gymnasium's frames")
-    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # gymnasium renders with pygame
-    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+    headless_pygame()
     env = spec.make(max_episode_steps=spec.max_episode_steps, render_mode="rgb_array")
     env.reset(seed=0)
     full = [gymnasium_frame(spec, env, s) for s in states]
