@@ -72,7 +72,7 @@ class CellOutcome:
     wall_s: float
 
 
-def run_cell(cell: Cell, directory: Path, info: RunInfo, threads: int,
+def run_cell(cell: Cell, directory: Path, info: RunInfo,
              progress: ProgressCallback | None = None) -> CellOutcome:
     started = datetime.now(UTC)
     _reset_peak_rss()
@@ -92,7 +92,7 @@ def run_cell(cell: Cell, directory: Path, info: RunInfo, threads: int,
 
         _seed_everything(cell.seed)
         ctx = AgentContext(agent_spec.config(**cfg["hyperparams"]), env_spec, make, cell.seed,
-                           threads)
+                           cfg["threads"])
         agent = agent_spec.make(ctx)
         evaluator = Evaluator(make(), cfg["eval"]["episodes"], cell.seed)
         report = None if progress is None else (lambda *a: progress(cell.id, *a))
@@ -102,7 +102,9 @@ def run_cell(cell: Cell, directory: Path, info: RunInfo, threads: int,
         if recorder.steps < cfg["budget"]:
             raise RuntimeError(f"agent '{cfg['agent']}' stopped after {recorder.steps} of "
                                f"{cfg['budget']} frames")
-    except Exception as exc:  # a cell's failure must not stop the grid
+    except KeyboardInterrupt:
+        raise  # an interrupted cell writes nothing
+    except BaseException as exc:  # a cell's failure, even sys.exit, must not stop the grid
         status = "failed"
         error = "".join(traceback.format_exception(exc)[-12:]).strip()
     ended = datetime.now(UTC)
@@ -111,14 +113,14 @@ def run_cell(cell: Cell, directory: Path, info: RunInfo, threads: int,
     steps = recorder.steps if recorder else 0
     rows.append({"kind": "cell", "step": steps, "return": None, "return_std": None,
                  "length": None, "wall_s": wall})
-    common = cell_metadata(cell, info, threads, status, error, started, ended, wall)
+    common = cell_metadata(cell, info, status, error, started, ended, wall)
     write_cell(directory, cell.id, [{**common, **row} for row in rows])
     final = recorder.last_eval if recorder else None
     return CellOutcome(cell.id, cell.label, status, error, final, wall)
 
 
-def cell_metadata(cell: Cell, info: RunInfo, threads: int, status: str, error: str | None,
-              started: datetime, ended: datetime, wall: float) -> dict[str, Any]:
+def cell_metadata(cell: Cell, info: RunInfo, status: str, error: str | None,
+                  started: datetime, ended: datetime, wall: float) -> dict[str, Any]:
     cfg = cell.config
     return {
         "cell_id": cell.id, "suite": cell.suite, "env": cell.env, "method": cell.method,
@@ -127,7 +129,7 @@ def cell_metadata(cell: Cell, info: RunInfo, threads: int, status: str, error: s
         "status": status, "error": error, "config": json.dumps(cfg, sort_keys=True),
         "hyperparams_source": cell.hyperparams_source,
         **{f"{k}_version": v for k, v in info.versions.items()},
-        "git_commit": info.git_commit, "host": info.host, "threads": threads,
+        "git_commit": info.git_commit, "host": info.host, "threads": cfg["threads"],
         "started_at": started, "ended_at": ended, "cell_wall_s": wall,
         "peak_rss_mb": _peak_rss_mb(),
     }
@@ -166,13 +168,13 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, threads: int,
-                     how: str) -> CellOutcome:
-    """A worker process died under this cell: record it as failed, from the parent."""
-    error = f"the worker process running this cell {how}"
+def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, how: str) -> CellOutcome:
+    """A cell that ended without recording itself (its process died, or writing its result
+    failed): record it as failed, with no curve."""
+    error = f"the process running this cell {how}"
     now = datetime.now(UTC)
     row = {"kind": "cell", "step": 0, "return": None, "return_std": None, "length": None,
            "wall_s": 0.0}
-    meta = cell_metadata(cell, info, threads, "failed", error, now, now, 0.0)
+    meta = cell_metadata(cell, info, "failed", error, now, now, 0.0)
     write_cell(directory, cell.id, [{**meta, **row, "peak_rss_mb": None}])
     return CellOutcome(cell.id, cell.label, "failed", error, None, 0.0)

@@ -103,12 +103,20 @@ def _stop_like_ctrl_c(signum, frame) -> None:
 
 @app.command()
 @user_errors
-def report(results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")]) -> None:
+def report(
+    results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
+    all_cells: Annotated[bool, typer.Option(
+        "--all", help="Include cells of earlier versions of the suite.")] = False,
+) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
     from senbench.report import render, summarize
     from senbench.results import read_results
 
-    render(summarize(read_results(results_dir)), out)
+    results = read_results(results_dir, include_stale=all_cells)
+    render(summarize(results), out)
+    if results.attrs.get("stale"):
+        err.print(f"left out {results.attrs['stale']} cells of earlier versions of the suite "
+                  "(--all includes them)")
 
 
 @app.command()

@@ -26,8 +26,13 @@ def final_return(returns: np.ndarray, window: int = FINAL_WINDOW) -> float:
 def steps_to_threshold(steps: np.ndarray, returns: np.ndarray, threshold: float,
                        window: int = THRESHOLD_WINDOW) -> float:
     steps = np.asarray(steps, dtype=float)
-    trailing = pd.Series(np.asarray(returns, dtype=float)).rolling(window, min_periods=1).mean()
-    below = np.flatnonzero(trailing.to_numpy() < threshold)
+    if not np.isfinite(threshold):
+        return float("nan")
+    returns = pd.Series(np.asarray(returns, dtype=float))
+    trailing = returns.rolling(window, min_periods=1).mean().to_numpy().copy()
+    # a NaN return (a diverged agent) is never "at or above"; a window holding one neither
+    trailing[returns.isna().rolling(window, min_periods=1).max().to_numpy() > 0] = np.nan
+    below = np.flatnonzero(~(trailing >= threshold))
     first = 0 if len(below) == 0 else below[-1] + 1
     return float(steps[first]) if first < len(steps) else float("nan")
 
@@ -42,15 +47,18 @@ def auc(steps: np.ndarray, returns: np.ndarray) -> float:
 
 def cell_metrics(results: pd.DataFrame) -> pd.DataFrame:
     """One row per cell: identity, status, and the three metrics of its evaluation curve."""
-    cells = results[results["kind"] == "cell"].set_index("cell_id")
+    cells = results[results["kind"] == "cell"]
     evals = results[results["kind"] == "eval"].sort_values("step")
+    curves = dict(list(evals.groupby(["suite", "cell_id"])))
     rows = []
-    for cell_id, cell in cells.iterrows():
-        curve = evals[evals["cell_id"] == cell_id]
+    for _, cell in cells.iterrows():
+        cell_id = cell["cell_id"]
+        curve = curves.get((cell["suite"], cell_id), evals.iloc[:0])
         steps, returns = curve["step"].to_numpy(), curve["return"].to_numpy()
         ok = cell["status"] == "ok" and len(curve) > 0
         rows.append({
-            "cell_id": cell_id, "env": cell["env"], "method": cell["method"],
+            "suite": cell["suite"], "cell_id": cell_id, "env": cell["env"],
+            "method": cell["method"],
             "variant": cell["variant"], "seed": cell["seed"], "status": cell["status"],
             "threshold": cell["threshold"], "budget": cell["budget"],
             "initial_return": float(returns[0]) if ok else np.nan,

@@ -52,6 +52,10 @@ class GridProgress:
             yield
         self._progress = None
 
+    def warn(self, message: str) -> None:
+        if self.console is not None:
+            self.console.print(f"[yellow]warning:[/] {message}", highlight=False)
+
     def started(self, cell_id: str, label: str, budget: int) -> None:
         if self._progress is None or cell_id in self._done or cell_id in self._cells:
             return

@@ -15,11 +15,12 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
     seeds finished and failed, and how many reached the threshold."""
     per_cell = cell_metrics(results)
     rows = []
-    for (env, method, variant), group in per_cell.groupby(["env", "method", "variant"], sort=True):
+    keys = ["suite", "env", "method", "variant"]
+    for (suite, env, method, variant), group in per_cell.groupby(keys, sort=True):
         ok = group[group["status"] == "ok"]
         reached = ok["steps_to_threshold"].dropna()
         rows.append({
-            "env": env, "method": method, "variant": variant,
+            "suite": suite, "env": env, "method": method, "variant": variant,
             "threshold": group["threshold"].iloc[0], "budget": int(group["budget"].max()),
             "seeds_ok": len(ok), "seeds_failed": int((group["status"] != "ok").sum()),
             "initial_mean": _mean(ok["initial_return"]),
@@ -47,9 +48,11 @@ def _pm(mean: float, std: float, digits: int = 1) -> str:
 
 
 def render(summary: pd.DataFrame, console: Console) -> None:
-    for env, rows in summary.groupby("env", sort=True):
+    several = summary["suite"].nunique() > 1
+    for (suite, env), rows in summary.groupby(["suite", "env"], sort=True):
+        where = f"{suite} / {env}" if several else env
         table = Table(
-            title=f"{env}: evaluation return; threshold {rows['threshold'].iloc[0]:g}, "
+            title=f"{where}: evaluation return; threshold {rows['threshold'].iloc[0]:g}, "
             f"budget {rows['budget'].max():,} frames",
             caption=f"mean ± std over finished seeds. final: last {FINAL_WINDOW} evaluations. "
             f"frames to threshold: from where the trailing mean of {THRESHOLD_WINDOW} "

@@ -10,6 +10,7 @@ the whole file or none, and readers never see a temp file (it does not end in .p
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Any
@@ -81,9 +82,42 @@ def write_cell(directory: Path, cell_id: str, rows: list[dict[str, Any]]) -> Pat
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, final)
+        _fsync_directory(directory)  # the rename itself survives a power loss
     finally:
         tmp.unlink(missing_ok=True)
     return final
+
+
+def _fsync_directory(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+MANIFEST = "cells.json"
+"""In a suite's results folder: the ids of the cells its current definition expands into.
+A suite edited between runs leaves the files of its former cells beside the new ones;
+readers use the manifest to leave those out."""
+
+
+def write_manifest(suite_dir: Path, cell_ids: list[str]) -> None:
+    tmp = suite_dir / f".{MANIFEST}.{os.getpid()}.tmp"
+    tmp.write_text(json.dumps({"cells": sorted(cell_ids)}, indent=0))
+    os.replace(tmp, suite_dir / MANIFEST)
+
+
+def current_cells(suite_dir: Path) -> set[str] | None:
+    try:
+        return set(json.loads((suite_dir / MANIFEST).read_text())["cells"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 def finished_status(path: Path) -> str | None:
@@ -124,7 +158,30 @@ def find_cell_files(path: str | Path) -> list[Path]:
     return files
 
 
-def read_results(path: str | Path) -> pd.DataFrame:
-    """All rows of all cells under ``path`` as one DataFrame."""
+def read_results(path: str | Path, include_stale: bool = False) -> pd.DataFrame:
+    """All rows of the cells under ``path`` as one DataFrame. Cells that a suite's current
+    definition no longer has (see MANIFEST) are left out unless ``include_stale``; the
+    frame's ``attrs["stale"]`` counts them."""
     files = find_cell_files(path)
-    return pq.read_table([str(f) for f in files], schema=SCHEMA).to_pandas()
+    stale = 0
+    if not include_stale:
+        keep = []
+        for f in files:
+            ids = current_cells(f.parent.parent)
+            if ids is None or f.stem in ids:
+                keep.append(f)
+        stale = len(files) - len(keep)
+        files = keep
+        if not files:
+            raise ResultsError(f"{path}: every cell result is of an earlier version of the "
+                               "suite; run the suite, or pass --all")
+    tables = []
+    for f in files:
+        try:
+            tables.append(pq.read_table(f, schema=SCHEMA))
+        except (pa.ArrowInvalid, OSError) as exc:
+            raise ResultsError(f"{f}: not a senbench cell result ({exc}); move it out of "
+                               "the results folder") from None
+    frame = pa.concat_tables(tables).to_pandas()
+    frame.attrs["stale"] = stale
+    return frame

@@ -1,10 +1,11 @@
-"""Running a suite's cells: resume, serial or process executors, progress, Ctrl-C.
+"""Running a suite's cells: resume, serial or one process per cell, progress, Ctrl-C.
 
 Resume: a cell whose file records ``ok`` is skipped (``force`` redoes it); a failed cell is
-tried again. Each worker process gets ``cores // workers`` torch threads, so N workers
-never oversubscribe the machine. Workers ignore SIGINT; on Ctrl-C the runner kills them, so
-only finished cells remain. A worker that dies (killed, out of memory) takes its cell down
-as ``failed``; the remaining cells go on in a fresh pool.
+tried again. With ``workers`` > 1 every cell runs in a process of its own, forked from a
+server that has imported senbench and torch once: a cell that dies (killed, out of memory,
+``os._exit``) is recorded as failed from its exit status and takes nothing else with it.
+Cells ignore SIGINT; on Ctrl-C or SIGTERM the runner kills them, so only finished cells
+remain; a cell whose runner was SIGKILLed notices and exits.
 """
 
 from __future__ import annotations
@@ -12,20 +13,29 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import sys
 import threading
 import time
-from collections import Counter
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
+from collections import deque
 from dataclasses import dataclass, field
+from importlib.metadata import entry_points
 from pathlib import Path
 from queue import Empty
 from typing import Any
 
+import psutil
+
 from senbench import plugins
 from senbench.cell import CellOutcome, RunInfo, record_lost_cell, run_cell
+from senbench.errors import SenbenchError
 from senbench.progress import GridProgress
-from senbench.results import cell_path, cells_dir, finished_status, remove_stray_temp_files
+from senbench.results import (
+    cell_path,
+    cells_dir,
+    finished_status,
+    remove_stray_temp_files,
+    write_manifest,
+)
 from senbench.suite import Cell, Suite
 
 
@@ -45,8 +55,12 @@ class RunSummary:
         return sum(o.status == "ok" for o in self.outcomes)
 
 
-def threads_per_worker(workers: int) -> int:
-    return max(1, (os.cpu_count() or 1) // workers)
+def usable_cores() -> int:
+    """Cores this process may run on (its affinity mask: a batch scheduler's share)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def pending_cells(suite: Suite, directory: Path, force: bool) -> list[Cell]:
@@ -58,12 +72,20 @@ def pending_cells(suite: Suite, directory: Path, force: bool) -> list[Cell]:
 def run_suite(suite: Suite, results_root: str | Path, workers: int = 1, force: bool = False,
               progress: GridProgress | None = None) -> RunSummary:
     directory = cells_dir(results_root, suite.name)
-    directory.mkdir(parents=True, exist_ok=True)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SenbenchError(f"cannot write results under {results_root}: {exc}") from None
     remove_stray_temp_files(directory)
     (directory.parent / "suite.yaml").write_bytes(suite.source.path.read_bytes())
+    write_manifest(directory.parent, [c.id for c in suite.cells])
     todo = pending_cells(suite, directory, force)
     summary = RunSummary(total=len(suite.cells), skipped=len(suite.cells) - len(todo))
     progress = progress or GridProgress(None)
+    threads = max((c.config["threads"] for c in todo), default=1)
+    if workers * threads > usable_cores():
+        progress.warn(f"{workers} workers × {threads} torch threads per cell > "
+                      f"{usable_cores()} cores: cells will compete for them")
     info = RunInfo.gather()
     with progress.grid(len(suite.cells), summary.skipped):
         try:
@@ -78,140 +100,131 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int = 1, force: b
 
 def _run_serial(todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,
                 summary: RunSummary) -> None:
-    threads = threads_per_worker(1)
-    _set_threads(threads)
     for cell in todo:
         progress.started(cell.id, cell.label, cell.config["budget"])
-        outcome = run_cell(cell, directory, info, threads, progress.update)
+        set_threads(cell.config["threads"])
+        try:
+            outcome = run_cell(cell, directory, info, progress.update)
+        except Exception as exc:  # outside the agent: e.g. the result could not be written
+            outcome = record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
         summary.outcomes.append(outcome)
         progress.finished(outcome)
 
 
-# --- process pool -------------------------------------------------------------------------
-
-_queue = None
+# --- one process per cell ------------------------------------------------------------------
 
 
-def _init_worker(threads: int, queue, extra_plugins: list[str]) -> None:
-    global _queue
+def _context() -> Any:
+    """Fork cells from a server that imported senbench, torch and the plugins once: a cell
+    starts in milliseconds, not the seconds a fresh interpreter needs to import torch."""
+    if sys.platform != "linux":
+        return mp.get_context("spawn")
+    context = mp.get_context("forkserver")
+    modules = ["senbench.cell", "torch"]
+    modules += sorted({ep.value.split(":")[0] for ep in entry_points(group=plugins.GROUP)})
+    context.set_forkserver_preload(modules)
+    return context
+
+
+def _cell_process(cell: Cell, directory: Path, info: RunInfo, events: Any,
+                  extra_plugins: list[tuple[str, str, str]], parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
-    _queue = queue
-    _set_threads(threads)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
+    set_threads(cell.config["threads"])
     plugins.register_modules(extra_plugins)
+    try:
+        outcome = run_cell(cell, directory, info,
+                           lambda *args: events.put(("update", *args)))
+    except Exception as exc:  # outside the agent: record it as this cell's failure
+        outcome = record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
+    events.put(("outcome", outcome))
+    events.close()
+    events.join_thread()  # the outcome is in the pipe before this process exits
 
 
-def _exit_with_parent(parent: int) -> None:
-    """A worker whose runner was killed (SIGKILL cannot be caught) stops too, rather than
-    finishing its cell for nobody."""
-    while os.getppid() == parent:
-        time.sleep(0.5)
+def _exit_with_parent(runner: int) -> None:
+    """A cell whose runner was killed (SIGKILL cannot be caught) stops too, rather than
+    finishing for nobody. (The runner is not the parent: cells fork from a server.)"""
+    try:
+        process = psutil.Process(runner)
+        while process.is_running():  # compares start times: a reused pid is not the runner
+            time.sleep(0.5)
+    except psutil.Error:
+        pass
     os._exit(1)
-
-
-def _worker_run(cell: Cell, directory: Path, info: RunInfo, threads: int) -> CellOutcome:
-    _queue.put(("started", cell.id, cell.label, cell.config["budget"], os.getpid()))
-    return run_cell(cell, directory, info, threads,
-                    lambda *args: _queue.put(("update", *args)))
-
-
-MAX_REQUEUES = 3
-"""How often a cell whose worker was stopped because another worker died is run again."""
 
 
 def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int,
                    progress: GridProgress, summary: RunSummary) -> None:
-    context = mp.get_context("spawn")
-    queue = context.Queue()
-    threads = threads_per_worker(workers)
-    requeued: Counter[str] = Counter()
-    remaining = list(todo)
-    while remaining:
-        running: dict[str, int] = {}  # cell id -> pid of the worker running it
-        processes: dict[int, Any] = {}
-        executor = ProcessPoolExecutor(
-            workers, mp_context=context, initializer=_init_worker,
-            initargs=(threads, queue, plugins.registered_module_names()),
-        )
-        futures: dict[Future, Cell] = {
-            executor.submit(_worker_run, c, directory, info, threads): c for c in remaining
-        }
-        remaining = []
-        processes.update(getattr(executor, "_processes", None) or {})
-        try:
-            while futures:
-                done, _ = wait(futures, timeout=0.2, return_when=FIRST_COMPLETED)
-                processes.update(getattr(executor, "_processes", None) or {})
-                _drain(queue, progress, running)
-                for future in done:
-                    cell = futures.pop(future)
-                    try:
-                        outcome = future.result()
-                    except BrokenProcessPool:
-                        reason = _death(running.get(cell.id), processes)
-                        retry = reason == "stopped" and requeued[cell.id] < MAX_REQUEUES
-                        if reason is None or retry:
-                            requeued[cell.id] += retry
-                            remaining.append(cell)
-                            continue
-                        outcome = record_lost_cell(cell, directory, info, threads, reason)
-                    running.pop(cell.id, None)
-                    summary.outcomes.append(outcome)
-                    progress.finished(outcome)
-        except BaseException:
-            _kill(executor)
-            raise
-        executor.shutdown(wait=True)
+    context = _context()
+    events = context.Queue()
+    waiting = deque(todo)
+    running: dict[str, tuple[Cell, Any]] = {}
+    outcomes: dict[str, CellOutcome] = {}
+    extra = plugins.registered_module_names()
+    try:
+        while waiting or running:
+            while waiting and len(running) < workers:
+                cell = waiting.popleft()
+                process = context.Process(
+                    target=_cell_process, daemon=True, name=f"senbench-cell-{cell.id}",
+                    args=(cell, directory, info, events, extra, os.getpid()))
+                process.start()
+                running[cell.id] = (cell, process)
+                progress.started(cell.id, cell.label, cell.config["budget"])
+            _drain(events, progress, outcomes, timeout=0.2)
+            for cell_id, (cell, process) in list(running.items()):
+                if process.exitcode is None:
+                    continue
+                deadline = time.monotonic() + 2.0
+                while cell_id not in outcomes and time.monotonic() < deadline:
+                    _drain(events, progress, outcomes, timeout=0.05)
+                outcome = outcomes.pop(cell_id, None)
+                if outcome is None:
+                    outcome = record_lost_cell(cell, directory, info, _death(process.exitcode))
+                del running[cell_id]
+                summary.outcomes.append(outcome)
+                progress.finished(outcome)
+    except BaseException:
+        for _, process in running.values():
+            process.kill()
+        for _, process in running.values():
+            process.join(timeout=5)
+        remove_stray_temp_files(directory)
+        raise
 
 
-def _death(pid: int | None, processes: dict[int, Any]) -> str | None:
-    """Why the worker running a cell is gone after the pool broke: None if the cell never
-    started, "stopped" if the pool terminated it because another worker died, else how it
-    died."""
-    if pid is None:
-        return None
-    process = processes.get(pid)
-    if process is None:
-        return "died"
-    # The pool's own thread reaps its workers too; whichever waits first gets the status.
-    deadline = time.monotonic() + 10
-    while (code := process.exitcode) is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    if code == -signal.SIGTERM:
-        return "stopped"
-    if code is not None and code < 0:
-        return f"was killed by signal {-code} ({signal.Signals(-code).name}; out of memory?)"
-    return f"exited with code {code}"
-
-
-def _drain(queue, progress: GridProgress, running: dict[str, int]) -> None:
+def _drain(events: Any, progress: GridProgress, outcomes: dict[str, CellOutcome],
+           timeout: float) -> None:
+    block = True
     while True:
         try:
-            event, *args = queue.get_nowait()
+            event, *args = events.get(block, timeout) if block else events.get_nowait()
         except Empty:
             return
-        if event == "started":
-            cell_id, label, budget, pid = args
-            running[cell_id] = pid
-            progress.started(cell_id, label, budget)
+        block = False
+        if event == "outcome":
+            outcomes[args[0].cell_id] = args[0]
         else:
             progress.update(*args)
 
 
-def _kill(executor: ProcessPoolExecutor) -> None:
-    processes = list(getattr(executor, "_processes", {}).values())
-    for process in processes:
-        process.kill()
-    executor.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        process.join(timeout=5)
+def _death(code: int | None) -> str:
+    """How a cell's process ended without reporting an outcome."""
+    if code is not None and code < 0:
+        name = signal.Signals(-code).name
+        hint = "; out of memory?" if -code == signal.SIGKILL else ""
+        return f"was killed by signal {-code} ({name}{hint})"
+    return f"exited with code {code} before reporting"
 
 
-def _set_threads(threads: int) -> None:
+def set_threads(threads: int) -> None:
     os.environ["OMP_NUM_THREADS"] = str(threads)
     os.environ["MKL_NUM_THREADS"] = str(threads)
     try:
         import torch
     except ImportError:
         return
-    torch.set_num_threads(threads)
+    if torch.get_num_threads() != threads:
+        torch.set_num_threads(threads)

@@ -104,7 +104,7 @@ class AgentContext:
     first ``reset`` with ``seed`` (vectorised agents: ``seed + i`` for env ``i``)."""
     seed: int
     threads: int
-    """torch threads this cell may use (cores / workers)."""
+    """torch threads this cell runs with (the suite's ``threads``), already set."""
 
 
 class Recorder(Protocol):

@@ -13,12 +13,14 @@ import hashlib
 import itertools
 import json
 import re
+import reprlib
+import typing
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import pydantic
-from pydantic import BaseModel, ConfigDict, Field, PositiveInt, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from senbench.errors import SuiteError, unknown_name_message
 from senbench.observations import OBSERVATIONS
@@ -30,12 +32,17 @@ class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
+Count = Annotated[int, Field(strict=True, gt=0)]
+"""A positive whole number, written as one: not "2000", not true, not 2000.0."""
+Seed = Annotated[int, Field(strict=True, ge=0, lt=2**32)]
+
+
 class EnvEntry(StrictModel):
-    max_episode_steps: PositiveInt | None = None
+    max_episode_steps: Count | None = None
     """Episode cap in steps; the env's own default when absent."""
-    threshold: float | None = None
+    threshold: Annotated[float, Field(allow_inf_nan=False)] | None = None
     """Evaluation return that counts as solved; the env's default when absent."""
-    budget: PositiveInt | None = None
+    budget: Count | None = None
     """Frames (environment steps) per cell on this env; the suite's budget when absent."""
     options: dict[str, Any] = {}
     """Keyword options of the env plugin, e.g. ``goal_velocity`` for mountaincar."""
@@ -44,7 +51,7 @@ class EnvEntry(StrictModel):
 class EncoderEntry(StrictModel):
     arch: str
     sampler: str = "uniform"
-    samples: PositiveInt = 50_000
+    samples: Count = 50_000
     """Labelled (frames, state) pairs in the pool."""
     fraction: Annotated[float, Field(gt=0, le=1)] = 1.0
     """Share of the pool used for training: the paper's d% as a fraction."""
@@ -52,9 +59,9 @@ class EncoderEntry(StrictModel):
 
 
 class PixelsEntry(StrictModel):
-    height: Annotated[int, Field(ge=8, le=512)] = 64
-    width: Annotated[int, Field(ge=8, le=512)] = 64
-    stack: Annotated[int, Field(ge=1, le=16)] = 2
+    height: Annotated[int, Field(strict=True, ge=8, le=512)] = 64
+    width: Annotated[int, Field(strict=True, ge=8, le=512)] = 64
+    stack: Annotated[int, Field(strict=True, ge=1, le=16)] = 2
     """Frames per observation, oldest first: one frame shows no velocity."""
     renderer: Literal["auto", "gymnasium"] = "auto"
     """auto: the env plugin's renderer if it has one; gymnasium: gymnasium's render()."""
@@ -67,14 +74,14 @@ class MethodEntry(StrictModel):
     encoder: EncoderEntry | None = None
     pixels: PixelsEntry | None = None
     """Frame size and stack for pixels / encoded observations (default: the suite's)."""
-    envs: list[str] | None = None
+    envs: Annotated[list[str], Field(min_length=1)] | None = None
     """Run only on these envs (default: every env of the suite)."""
 
 
 class EvalEntry(StrictModel):
-    every: PositiveInt
+    every: Count
     """Frames between evaluations."""
-    episodes: PositiveInt = 10
+    episodes: Count = 10
     """Deterministic episodes per evaluation."""
 
 
@@ -83,13 +90,16 @@ class SuiteModel(StrictModel):
     description: str = ""
     envs: Annotated[dict[str, EnvEntry], Field(min_length=1)]
     methods: Annotated[dict[str, MethodEntry], Field(min_length=1)]
-    seeds: list[int]
-    budget: PositiveInt
+    seeds: Annotated[list[Seed], Field(min_length=1)]
+    budget: Count
     """Frames (environment steps) per cell."""
     eval: EvalEntry
+    threads: Annotated[int, Field(strict=True, ge=1, le=256)] = 1
+    """torch threads per cell. Part of a cell's config: float sums, and so curves, can
+    differ with the thread count, so it is fixed by the suite, not by --workers."""
     pixels: PixelsEntry = PixelsEntry()
     """Frame size and stack of pixel observations, unless a method sets its own."""
-    variants: dict[str, dict[str, list[Any]]] = {}
+    variants: dict[str, dict[str, Annotated[list[Any], Field(min_length=1)]]] = {}
     """method → {parameter path → values}: one variant per combination of values."""
 
     @field_validator("envs", mode="before")
@@ -103,8 +113,8 @@ class SuiteModel(StrictModel):
     @classmethod
     def _seed_count(cls, value: Any) -> Any:
         if isinstance(value, int) and not isinstance(value, bool):
-            if value < 1:
-                raise ValueError("a seed count must be at least 1")
+            if not 1 <= value <= 10_000:
+                raise ValueError("a seed count must be between 1 and 10000")
             return list(range(value))
         return value
 
@@ -164,8 +174,17 @@ def _join(source: SuiteSource, problems: list[str]) -> str:
     return head + "\n" + "\n".join(f"  {p}" for p in problems)
 
 
+_REPR = reprlib.Repr()  # keyword arguments only from Python 3.12
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlist, _REPR.maxdict = 2, 60, 60, 4, 4
+
+
+def _show(value: Any) -> str:
+    """A short repr: a value built from YAML aliases can be recursive, or huge."""
+    return _REPR.repr(value)
+
+
 def _dotted(loc: Loc) -> str:
-    return ".".join(str(p) for p in loc)
+    return ".".join(str(p) for p in loc if p != "")
 
 
 def _format_pydantic(exc: pydantic.ValidationError, source: SuiteSource) -> str:
@@ -178,7 +197,7 @@ def _format_pydantic(exc: pydantic.ValidationError, source: SuiteSource) -> str:
         elif err["type"] == "missing":
             msg = "required key is missing"
         else:
-            msg = f"{err['msg']} (got {err.get('input')!r})"
+            msg = f"{err['msg']} (got {_show(err.get('input'))})"
         problems.append(f"{source.where(loc)}: {_dotted(loc) or '(top level)'}: {msg}")
     return _join(source, problems)
 
@@ -267,12 +286,17 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
                         "seed": seed,
                         "budget": env_entry.budget or model.budget,
                         "eval": model.eval.model_dump(),
+                        "threads": model.threads,
                     }
                     cells.append(Cell(model.name, env_name, method_name, variant, seed, config,
                                       source_note))
-    if len({c.id for c in cells}) != len(cells):
-        problems.append(f"{source.path}: two cells resolve to the same config; remove the "
-                        "duplicate seed, variant value or method")
+    seen: dict[str, Cell] = {}
+    for cell in cells:
+        if cell.id in seen:
+            problems.append(f"{source.where(('seeds',))}: {seen[cell.id].label} and "
+                            f"{cell.label} resolve to the same config; remove the duplicate "
+                            "seed, variant value or method")
+        seen.setdefault(cell.id, cell)
     return cells
 
 
@@ -359,21 +383,38 @@ def _variants(axes: dict[str, list[Any]]):
 
 
 def _resolve_config(agent, params: dict[str, Any], where, problem) -> dict[str, Any] | None:
+    """The agent's config from its defaults and ``params``, each value checked strictly
+    against the field's type (no "2000" for an int, no true for a number), then the
+    config's own ``__post_init__`` checks."""
+    hints = typing.get_type_hints(agent.config)
     fields = [f.name for f in dataclasses.fields(agent.config)]
-    unknown = [k for k in params if k not in fields]
-    for key in unknown:
-        problem(where(key), unknown_name_message(f"{agent.name} hyperparameter", key, fields))
-    if unknown:
+    values, ok = {}, True
+    for key, value in params.items():
+        if key not in fields:
+            problem(where(key), unknown_name_message(f"{agent.name} hyperparameter", key, fields))
+            ok = False
+            continue
+        try:
+            values[key] = pydantic.TypeAdapter(hints[key]).validate_python(value, strict=True)
+        except pydantic.ValidationError as exc:
+            err = exc.errors()[0]
+            problem(where(key), f"expected {_type_name(hints[key])}: {err['msg']} "
+                    f"(got {_show(value)})")
+            ok = False
+    if not ok:
         return None
     try:
-        config = pydantic.TypeAdapter(agent.config).validate_python(params)
-    except pydantic.ValidationError as exc:
-        for err in exc.errors():
-            loc = err["loc"]
-            at = (*where(str(loc[0])), *loc[1:]) if loc else where("")[:-1]
-            problem(at, f"{err['msg']} (got {err.get('input')!r})")
+        config = agent.config(**values)
+    except (ValueError, TypeError) as exc:
+        culprit = next((k for k in values if k in str(exc)), None)
+        loc = where(culprit) if culprit else where("")[:-1]
+        problem(loc, f"{agent.name}: {exc}")
         return None
     return dataclasses.asdict(config)
+
+
+def _type_name(annotation: Any) -> str:
+    return getattr(annotation, "__name__", None) or str(annotation)
 
 
 def _fits(value: Any, expected: type) -> bool:

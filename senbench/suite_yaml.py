@@ -1,4 +1,4 @@
-"""Reading a suite file: YAML with ``safe_load``, plus where each key sits in the file.
+"""Reading a suite file: YAML with a SafeLoader, plus where each key sits in the file.
 
 Errors must point at a line. PyYAML's composer (no constructors run, so it is as safe as
 ``safe_load``) keeps the line of every node; we map key paths to lines, and refuse duplicate
@@ -7,6 +7,7 @@ keys, which ``safe_load`` would silently resolve to the last one.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +16,19 @@ import yaml
 from senbench.errors import SuiteError
 
 Loc = tuple[Any, ...]
+
+
+class SuiteLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` (no Python objects, ever) that also reads ``1e-3`` as a number.
+    PyYAML follows YAML 1.1, where a float needs a dot: ``learning_rate: 1e-3`` would be
+    the string "1e-3", and a typed hyperparameter would be refused."""
+
+
+SuiteLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
 
 
 class SuiteSource:
@@ -43,8 +57,8 @@ def read_suite_file(path: str | Path) -> SuiteSource:
     except (OSError, UnicodeDecodeError) as exc:
         raise SuiteError(f"{path}: cannot read the suite file: {exc}") from None
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
+        root = yaml.compose(text, Loader=SuiteLoader)
+        data = yaml.load(text, Loader=SuiteLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = f":{mark.line + 1}" if mark is not None else ""
@@ -53,26 +67,32 @@ def read_suite_file(path: str | Path) -> SuiteSource:
         raise SuiteError(f"{path}: not valid YAML: {exc}") from None
     lines: dict[Loc, int] = {}
     if root is not None:
-        _index(root, (), lines, path)
+        _index(root, (), lines, path, set())
     return SuiteSource(path, data, lines)
 
 
-def _index(node: yaml.Node, loc: Loc, lines: dict[Loc, int], path: Path) -> None:
+def _index(node: yaml.Node, loc: Loc, lines: dict[Loc, int], path: Path,
+           seen: set[int]) -> None:
+    """Each node once: a YAML alias points back to a node already indexed, so neither a
+    self-referencing alias nor nested ones ("billion laughs") make this loop or explode."""
+    if id(node) in seen:
+        return
+    seen.add(id(node))
     lines.setdefault(loc, node.start_mark.line + 1)
     if isinstance(node, yaml.MappingNode):
-        seen: dict[Any, int] = {}
+        first_line: dict[Any, int] = {}
         for key_node, value_node in node.value:
             key = key_node.value
             line = key_node.start_mark.line + 1
-            if key in seen:
+            if key in first_line:
                 dotted = ".".join(str(p) for p in (*loc, key))
                 raise SuiteError(
-                    f"{path}:{line}: key '{dotted}' appears twice (first on line {seen[key]}); "
-                    "keep one"
+                    f"{path}:{line}: key '{dotted}' appears twice (first on line "
+                    f"{first_line[key]}); keep one"
                 )
-            seen[key] = line
+            first_line[key] = line
             lines[(*loc, key)] = line
-            _index(value_node, (*loc, key), lines, path)
+            _index(value_node, (*loc, key), lines, path, seen)
     elif isinstance(node, yaml.SequenceNode):
         for i, item in enumerate(node.value):
-            _index(item, (*loc, i), lines, path)
+            _index(item, (*loc, i), lines, path, seen)

@@ -41,6 +41,16 @@ class DieAgent(CrashAgent):
         os._exit(17)
 
 
+class ExitAgent(CrashAgent):
+    """Calls sys.exit, as some libraries do on errors."""
+
+    def learn(self, budget, recorder):
+        import sys
+
+        recorder.step(0)
+        sys.exit(3)
+
+
 @dataclass
 class SlowConfig:
     sleep_s: float = 0.01
@@ -78,3 +88,4 @@ def register_agents(register):
     register(AgentSpec("crash", CrashAgent, CrashConfig, kinds, frozenset({"state"})))
     register(AgentSpec("die", DieAgent, CrashConfig, kinds, frozenset({"state"})))
     register(AgentSpec("slow", SlowAgent, SlowConfig, kinds, frozenset({"state"})))
+    register(AgentSpec("exit", ExitAgent, CrashConfig, kinds, frozenset({"state"})))

@@ -35,3 +35,9 @@ def test_auc_is_the_mean_return_over_the_budget():
     returns = [0, 100, 100, 100, 100, 100]
     assert auc(STEPS, returns) == pytest.approx((50 * 100 + 100 * 400) / 500)
     assert auc([0, 10], [-5, -5]) == -5
+
+
+def test_nan_returns_never_count_as_reaching_the_threshold():
+    assert math.isnan(steps_to_threshold(STEPS, [math.nan] * 6, -110))
+    assert math.isnan(steps_to_threshold(STEPS, [-200, -100, -100, -100, -100, math.nan], -110))
+    assert math.isnan(steps_to_threshold(STEPS, [-100] * 6, math.nan))

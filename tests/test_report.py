@@ -71,3 +71,24 @@ print(n_duck, n_polars, n_pandas)
                           cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["2", "2", "2"]
+
+
+def test_report_leaves_out_cells_of_an_earlier_version_of_the_suite(write_suite, tmp_path):
+    text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
+    run_suite(load_suite(write_suite(text), registries()), tmp_path)
+    edited = text.replace("sarsa-state: {agent: sarsa}",
+                          "sarsa-state: {agent: sarsa, hyperparams: {alpha: 0.5}}")
+    run_suite(load_suite(write_suite(edited), registries()), tmp_path)
+    assert len(list((tmp_path / "rep" / "cells").glob("*.parquet"))) == 4
+    current = read_results(tmp_path / "rep")
+    assert current.attrs["stale"] == 2
+    assert summarize(current).set_index("method").loc["sarsa-state", "seeds_ok"] == 2
+    everything = read_results(tmp_path / "rep", include_stale=True)
+    assert summarize(everything).set_index("method").loc["sarsa-state", "seeds_ok"] == 4
+
+
+def test_a_foreign_file_in_the_results_folder_is_a_clear_error(tmp_path):
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "cells" / "notes.parquet").write_text("not parquet")
+    with pytest.raises(ResultsError, match="not a senbench cell result"):
+        read_results(tmp_path)

@@ -122,7 +122,47 @@ BAD = {
                      "{max_episode_steps: 300, options: {goal_speed: 0.1}}"),
         ["envs.mountaincar.options.goal_speed", "goal_velocity"],
     ),
+    "negative seed": (GOOD.replace("seeds: [0, 1, 2]", "seeds: [0, -1]"),
+                      ["seeds.1", "greater than or equal to 0"]),
+    "seed past 2**32": (GOOD.replace("seeds: [0, 1, 2]", "seeds: [4294967296]"),
+                        ["seeds.0", "less than 4294967296"]),
+    "no seeds": (GOOD.replace("seeds: [0, 1, 2]", "seeds: []"),
+                 ["suite.yaml:13", "seeds", "at least 1 item"]),
+    "a method on no env": (GOOD.replace("envs: [mountaincar]", "envs: []"),
+                           ["methods.sarsa-state.envs", "at least 1"]),
+    "an empty sweep": (GOOD.replace("[0.8, 0.9]", "[]"),
+                       ["variants.sarsa-state.hyperparams.trace_decay", "at least 1"]),
+    "budget as a string": (GOOD.replace("budget: 2000", 'budget: "2000"'),
+                           ["suite.yaml:14", "budget", "valid integer"]),
+    "a boolean seed": (GOOD.replace("seeds: [0, 1, 2]", "seeds: [true, 1]"),
+                       ["seeds.0", "valid integer"]),
+    "not a number threshold": (GOOD.replace("threshold: -120", "threshold: .nan"),
+                               ["envs.mountaincar.threshold", "finite"]),
+    "hyperparameter out of range": (GOOD.replace("alpha: 0.8", "alpha: 0.8, tilings: 0"),
+                                    ["suite.yaml:9", "hyperparams.tilings",
+                                     "tilings and tiles must be at least 1"]),
+    "a boolean for a count": (GOOD.replace("alpha: 0.8", "alpha: 0.8, tiles: true"),
+                              ["hyperparams.tiles", "expected int"]),
+    "self-referencing alias": (GOOD.replace("name: grid", "name: grid\ndescription: &a [*a]"),
+                               ["description", "valid string"]),
 }
+
+
+def test_scientific_notation_reads_as_a_number(write_suite):
+    suite = load(write_suite, GOOD.replace("alpha: 0.8", "alpha: 8e-1"))
+    assert suite.cells[0].config["hyperparams"]["alpha"] == 0.8
+
+
+def test_nested_aliases_validate_quickly(write_suite):
+    import time
+
+    laughs = "name: grid\ndescription: &l0 [x, x, x, x, x, x, x, x, x, x]\n"
+    for level in range(1, 8):
+        laughs += f"l{level}: &l{level} [" + ", ".join([f"*l{level - 1}"] * 10) + "]\n"
+    start = time.perf_counter()
+    with pytest.raises(SuiteError):
+        load(write_suite, laughs)
+    assert time.perf_counter() - start < 5
 
 
 @pytest.mark.parametrize("case", list(BAD))

@@ -37,6 +37,23 @@ class PPOConfig:
     activation: str = "tanh"
     """tanh or relu."""
 
+    def __post_init__(self) -> None:
+        for name in ("n_envs", "n_steps", "n_epochs"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if not 2 <= self.batch_size <= self.n_steps * self.n_envs:
+            raise ValueError(f"batch_size must be in [2, n_steps * n_envs = "
+                             f"{self.n_steps * self.n_envs}], got {self.batch_size}")
+        if self.learning_rate <= 0 or self.clip_range <= 0:
+            raise ValueError("learning_rate and clip_range must be positive")
+        for name in ("gamma", "gae_lambda"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        if self.activation not in ("tanh", "relu"):
+            raise ValueError(f"activation must be tanh or relu, got {self.activation!r}")
+        if not self.net_arch or min(self.net_arch) < 1:
+            raise ValueError(f"net_arch must list positive layer widths, got {self.net_arch}")
+
 
 class PPOAgent:
     def __init__(self, ctx: AgentContext):
@@ -47,8 +64,6 @@ class PPOAgent:
 
         cfg: PPOConfig = ctx.config
         activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
-        if cfg.activation not in activations:
-            raise ValueError(f"ppo activation must be one of {sorted(activations)}")
         venv = DummyVecEnv([lambda: Monitor(ctx.make_env()) for _ in range(cfg.n_envs)])
         self.model = PPO(
             "MlpPolicy",

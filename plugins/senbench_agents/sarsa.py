@@ -36,6 +36,15 @@ class SarsaConfig:
     epsilon: float = 0.0
     """Probability of a uniformly random action while learning."""
 
+    def __post_init__(self) -> None:
+        if self.tilings < 1 or self.tiles < 1:
+            raise ValueError("tilings and tiles must be at least 1")
+        if self.alpha <= 0:
+            raise ValueError(f"alpha must be positive, got {self.alpha}")
+        for name in ("trace_decay", "gamma", "epsilon"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+
 
 class TileCoder:
     """Maps an observation in the box [low, high] to one active tile index per tiling."""
