@@ -18,25 +18,24 @@ from senbench.pixels import FrameStack, PixelSpec, rendered_frames
 from senbench_classic.mountaincar import MOUNTAINCAR
 from senbench_classic.pendulum import PENDULUM
 
+GYMNASIUM_CLASSES = {"mountaincar": (MOUNTAINCAR, MountainCarEnv),
+                     "pendulum": (PENDULUM, PendulumEnv)}
 
-def make_pixel_mountaincar(height: int = 64, width: int = 64, stack: int = 2,
-                           render_mode: str | None = None, goal_velocity: float = 0.0):
+
+def make_pixel_env(env: str, height: int = 64, width: int = 64, stack: int = 2,
+                   render_mode: str | None = None, **options) -> gymnasium.Env:
+    """The gymnasium env class itself (gymnasium.make adds the TimeLimit), observed as
+    frames; ``options`` go to the class (goal_velocity, g)."""
+    spec, env_class = GYMNASIUM_CLASSES[env]
     pixels = PixelSpec(height, width, stack)
-    env = MountainCarEnv(render_mode=render_mode, goal_velocity=goal_velocity)
-    return FrameStack(PhysicalStateInfo(env, MOUNTAINCAR),
-                      rendered_frames(MOUNTAINCAR.render, pixels), pixels)
-
-
-def make_pixel_pendulum(height: int = 64, width: int = 64, stack: int = 2,
-                        render_mode: str | None = None, g: float = 10.0):
-    pixels = PixelSpec(height, width, stack)
-    env = PendulumEnv(render_mode=render_mode, g=g)
-    return FrameStack(PhysicalStateInfo(env, PENDULUM),
-                      rendered_frames(PENDULUM.render, pixels), pixels)
+    base = env_class(render_mode=render_mode, **options)
+    return FrameStack(PhysicalStateInfo(base, spec), rendered_frames(spec.render, pixels),
+                      pixels)
 
 
 def register_gymnasium_ids() -> None:
-    for env_id, entry_point in (("senbench/PixelMountainCar-v0", make_pixel_mountaincar),
-                                ("senbench/PixelPendulum-v0", make_pixel_pendulum)):
+    for env_id, env in (("senbench/PixelMountainCar-v0", "mountaincar"),
+                        ("senbench/PixelPendulum-v0", "pendulum")):
         if env_id not in gymnasium.registry:
-            gymnasium.register(env_id, entry_point=entry_point, max_episode_steps=200)
+            gymnasium.register(env_id, entry_point=make_pixel_env, max_episode_steps=200,
+                               kwargs={"env": env})
