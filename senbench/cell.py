@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from senbench.encoders import encoder_request, load_or_train
 from senbench.evaluation import CellRecorder, Evaluator
 from senbench.observations import make_env
 from senbench.pixels import PixelSpec
@@ -39,9 +40,11 @@ class RunInfo:
     versions: dict[str, str]
     git_commit: str | None
     host: str
+    encoder_cache: Path = Path("results") / "encoders"
+    """Where trained state encoders are kept, shared by every suite under one results root."""
 
     @classmethod
-    def gather(cls) -> RunInfo:
+    def gather(cls, encoder_cache: Path = Path("results") / "encoders") -> RunInfo:
         def ver(dist: str) -> str:
             try:
                 return version(dist)
@@ -50,7 +53,8 @@ class RunInfo:
 
         dists = {"senbench": "senbench", "torch": "torch", "gymnasium": "gymnasium",
                  "sb3": "stable-baselines3", "numpy": "numpy"}
-        return cls({k: ver(d) for k, d in dists.items()}, _git_commit(), platform.node())
+        return cls({k: ver(d) for k, d in dists.items()}, _git_commit(), platform.node(),
+                   Path(encoder_cache))
 
 
 def _git_commit() -> str | None:
@@ -85,10 +89,13 @@ def run_cell(cell: Cell, directory: Path, info: RunInfo,
         agent_spec = regs.agents.get(cfg["agent"])
 
         pixels = PixelSpec(**cfg["pixels"]) if cfg.get("pixels") else None
+        encoder = None
+        if cfg.get("encoder"):
+            encoder = load_or_train(info.encoder_cache, encoder_request(cfg), regs)
 
         def make() -> Any:
             return make_env(env_spec, cfg["observation"], cfg["env"]["max_episode_steps"],
-                            cfg["env"]["options"], pixels)
+                            cfg["env"]["options"], pixels, encoder)
 
         _seed_everything(cell.seed)
         ctx = AgentContext(agent_spec.config(**cfg["hyperparams"]), env_spec, make, cell.seed,

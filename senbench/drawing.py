@@ -114,6 +114,9 @@ class FrameTable:
         i0 = np.minimum(np.floor(t).astype(np.int64), self.n - (0 if self.periodic else 1))
         i1 = (i0 + 1) % self.n if self.periodic else i0 + 1
         f = (t - i0).astype(np.float32)[:, None]
-        a = self.table[i0].astype(np.float32)
-        frames = a + (self.table[i1] - a) * f
-        return (frames + 0.5).astype(np.uint8).reshape(len(t), *self.shape)
+        out = np.empty((len(t), self.table.shape[1]), dtype=np.uint8)
+        for s in range(0, len(t), 512):  # chunks: float temporaries stay in cache
+            a = self.table[i0[s:s + 512]].astype(np.float32)
+            frames = a + (self.table[i1[s:s + 512]] - a) * f[s:s + 512]
+            out[s:s + 512] = frames + 0.5
+        return out.reshape(len(t), *self.shape)

@@ -1,7 +1,8 @@
 """Observation pipelines: what an agent sees of an env.
 
 ``state`` is the env's own observation vector (the true state); ``pixels`` a stack of
-grayscale frames (see ``senbench.pixels``). Whatever the observation,
+grayscale frames (see ``senbench.pixels``); ``encoded`` those frames through a trained
+state encoder (see ``senbench.encoders``). Whatever the observation,
 the physical state travels in ``info["state"]`` so that evaluation and encoder checks can
 read it; an agent never receives it as its observation unless it runs on ``state``.
 """
@@ -54,14 +55,39 @@ def pixel_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any],
     return FrameStack(PhysicalStateInfo(env, spec), draw, pixels)
 
 
-Builder = Callable[[EnvSpec, int, Mapping[str, Any], PixelSpec | None], gymnasium.Env]
+class EncodedObservation(gymnasium.ObservationWrapper):
+    """The frame stack → the state encoder's estimate of the state observation, clipped to
+    the observation bounds. The agent sees the estimate only."""
+
+    def __init__(self, env: gymnasium.Env, encoder: Any):
+        super().__init__(env)
+        self._encoder = encoder
+        self.observation_space = gymnasium.spaces.Box(encoder.low, encoder.high,
+                                                      dtype=np.float32)
+
+    def observation(self, frames: np.ndarray) -> np.ndarray:
+        return self._encoder(frames[None])[0]
+
+
+def encoded_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any],
+                pixels: PixelSpec | None = None, encoder: Any = None) -> gymnasium.Env:
+    if encoder is None:
+        raise ValueError("the encoded observation needs a trained state encoder")
+    return EncodedObservation(pixel_env(spec, max_episode_steps, options, pixels), encoder)
+
+
+Builder = Callable[..., gymnasium.Env]
 OBSERVATIONS: dict[str, Builder] = {
     "state": state_env,
     "pixels": pixel_env,
+    "encoded": encoded_env,
 }
-"""Observation name → ``build(env_spec, max_episode_steps, options, pixels)``."""
+"""Observation name → ``build(env_spec, max_episode_steps, options, pixels[, encoder])``."""
 
 
 def make_env(spec: EnvSpec, observation: str, max_episode_steps: int,
-             options: Mapping[str, Any], pixels: PixelSpec | None = None) -> gymnasium.Env:
+             options: Mapping[str, Any], pixels: PixelSpec | None = None,
+             encoder: Any = None) -> gymnasium.Env:
+    if observation == "encoded":
+        return encoded_env(spec, max_episode_steps, options, pixels, encoder)
     return OBSERVATIONS[observation](spec, max_episode_steps, options, pixels)

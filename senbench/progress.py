@@ -52,6 +52,10 @@ class GridProgress:
             yield
         self._progress = None
 
+    def log(self, message: str) -> None:
+        if self.console is not None:
+            self.console.print(message, highlight=False)
+
     def warn(self, message: str) -> None:
         if self.console is not None:
             self.console.print(f"[yellow]warning:[/] {message}", highlight=False)

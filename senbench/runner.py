@@ -86,9 +86,10 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int = 1, force: b
     if workers * threads > usable_cores():
         progress.warn(f"{workers} workers × {threads} torch threads per cell > "
                       f"{usable_cores()} cores: cells will compete for them")
-    info = RunInfo.gather()
+    info = RunInfo.gather(Path(results_root) / "encoders")
     with progress.grid(len(suite.cells), summary.skipped):
         try:
+            todo = _prepare_encoders(todo, directory, info, progress, summary)
             if workers <= 1:
                 _run_serial(todo, directory, info, progress, summary)
             else:
@@ -96,6 +97,35 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int = 1, force: b
         except KeyboardInterrupt:
             summary.interrupted = True
     return summary
+
+
+def _prepare_encoders(todo: list[Cell], directory: Path, info: RunInfo,
+                      progress: GridProgress, summary: RunSummary) -> list[Cell]:
+    """Train each state encoder the cells need once, here, with every core, before any cell
+    starts (cells then load it). A cell whose encoder cannot be trained fails, with why."""
+    from senbench.encoders import encoder_request, load_or_train
+    from senbench.plugins import registries
+
+    needed: dict[str, list[Cell]] = {}
+    for cell in todo:
+        if cell.config.get("encoder"):
+            needed.setdefault(encoder_request(cell.config).id, []).append(cell)
+    if not needed:
+        return todo
+    set_threads(usable_cores())
+    lost: set[str] = set()
+    for cells in needed.values():
+        try:
+            load_or_train(info.encoder_cache, encoder_request(cells[0].config), registries(),
+                          progress.log)
+        except Exception as exc:
+            for cell in cells:
+                outcome = record_lost_cell(cell, directory, info,
+                                           f"could not train its encoder: {exc!r}")
+                summary.outcomes.append(outcome)
+                progress.finished(outcome)
+                lost.add(cell.id)
+    return [c for c in todo if c.id not in lost]
 
 
 def _run_serial(todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,

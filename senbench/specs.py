@@ -44,6 +44,13 @@ class EnvSpec:
     set_state: Callable[[Any, np.ndarray], None] | None = None
     """``set_state(unwrapped_env, state)`` puts the env in a physical state (to sample
     labelled frames, and to compare renderers)."""
+    observe: Callable[[np.ndarray], np.ndarray] | None = None
+    """``observe(states (B, d)) -> (B, k)``: the observation an agent on the true state
+    gets for each physical state — what a state encoder learns to predict."""
+    observation_labels: tuple[str, ...] = ()
+    demo_policy: Callable[[np.ndarray], Any] | None = None
+    """A policy on the observation that solves the task, for encoder traces along a
+    successful trajectory (the paper's Figs. 6 and 10)."""
 
 
 @dataclass(frozen=True)
@@ -73,7 +80,8 @@ class AgentSpec:
 
 @dataclass(frozen=True)
 class EncoderSpec:
-    """A state encoder architecture: ``build(input_shape, state_dim, config) -> nn.Module``."""
+    """A state encoder architecture: ``build((stack, H, W), outputs, config)`` returns a
+    torch module mapping float frames in [0, 1], (B, stack, H, W), to (B, outputs)."""
 
     name: str
     build: Callable[..., Any]
@@ -83,7 +91,9 @@ class EncoderSpec:
 
 @dataclass(frozen=True)
 class SamplerSpec:
-    """A way to draw labelled (frame stack, true state) data from an env."""
+    """A way to draw labelled data from an env: ``sample(env_spec, count, pixels, seed,
+    config)`` returns (frames (N, stack, H, W) uint8, observations (N, k) float32), the
+    frames exactly as the pixel pipeline draws them for that observation."""
 
     name: str
     sample: Callable[..., Any]

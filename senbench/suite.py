@@ -49,13 +49,22 @@ class EnvEntry(StrictModel):
 
 
 class EncoderEntry(StrictModel):
-    arch: str
+    arch: str = "sen-resnet"
+    config: dict[str, Any] = {}
+    """The architecture's hyperparameters."""
     sampler: str = "uniform"
+    sampler_config: dict[str, Any] = {}
     samples: Count = 50_000
     """Labelled (frames, state) pairs in the pool."""
-    fraction: Annotated[float, Field(gt=0, le=1)] = 1.0
+    fraction: Annotated[float, Field(gt=0, le=1)] = 0.2
     """Share of the pool used for training: the paper's d% as a fraction."""
-    config: dict[str, Any] = {}
+    seed: Seed = 0
+    """The encoder's own seed: cells of every RL seed share one encoder."""
+    epochs: Count = 30
+    batch_size: Annotated[int, Field(strict=True, ge=2)] = 128
+    learning_rate: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1e-3
+    patience: Count = 4
+    test_samples: Count = 5000
 
 
 class PixelsEntry(StrictModel):
@@ -271,7 +280,9 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
                 )
                 merged = {**(defaults.values if defaults else {}), **hyperparams}
                 resolved = _resolve_config(agent, merged, where, problem)
-                if resolved is None:
+                if encoder is not None:
+                    encoder = _resolve_encoder(encoder, regs, method_name, problem)
+                if resolved is None or (method.encoder is not None and encoder is None):
                     continue
                 for seed in model.seeds:
                     config = {
@@ -383,15 +394,40 @@ def _variants(axes: dict[str, list[Any]]):
 
 
 def _resolve_config(agent, params: dict[str, Any], where, problem) -> dict[str, Any] | None:
-    """The agent's config from its defaults and ``params``, each value checked strictly
+    return _resolve_dataclass(agent.config, f"{agent.name} hyperparameter", params, where,
+                              problem)
+
+
+def _resolve_encoder(encoder: dict[str, Any], regs: Registries, method_name: str,
+                     problem) -> dict[str, Any] | None:
+    """The encoder entry with its architecture's and sampler's configs checked and
+    completed with their defaults."""
+    resolved = dict(encoder)
+    for key, registry, name in (("config", regs.encoders, encoder["arch"]),
+                                ("sampler_config", regs.samplers, encoder["sampler"])):
+        spec = registry.get(name)
+
+        def where(field: str, key: str = key) -> Loc:
+            return ("methods", method_name, "encoder", key, field)
+
+        values = _resolve_dataclass(spec.config, f"{name} setting", encoder[key], where, problem)
+        if values is None:
+            return None
+        resolved[key] = values
+    return resolved
+
+
+def _resolve_dataclass(config_cls, what: str, params: dict[str, Any], where,
+                       problem) -> dict[str, Any] | None:
+    """A config dataclass from its defaults and ``params``, each value checked strictly
     against the field's type (no "2000" for an int, no true for a number), then the
     config's own ``__post_init__`` checks."""
-    hints = typing.get_type_hints(agent.config)
-    fields = [f.name for f in dataclasses.fields(agent.config)]
+    hints = typing.get_type_hints(config_cls)
+    fields = [f.name for f in dataclasses.fields(config_cls)]
     values, ok = {}, True
     for key, value in params.items():
         if key not in fields:
-            problem(where(key), unknown_name_message(f"{agent.name} hyperparameter", key, fields))
+            problem(where(key), unknown_name_message(what, key, fields))
             ok = False
             continue
         try:
@@ -404,11 +440,11 @@ def _resolve_config(agent, params: dict[str, Any], where, problem) -> dict[str, 
     if not ok:
         return None
     try:
-        config = agent.config(**values)
+        config = config_cls(**values)
     except (ValueError, TypeError) as exc:
         culprit = next((k for k in values if k in str(exc)), None)
         loc = where(culprit) if culprit else where("")[:-1]
-        problem(loc, f"{agent.name}: {exc}")
+        problem(loc, str(exc))
         return None
     return dataclasses.asdict(config)
 

@@ -25,6 +25,16 @@ def set_state(env: gymnasium.Env, state: np.ndarray) -> None:
     env.state = np.asarray(state, dtype=np.float64).copy()
 
 
+def observe(states: np.ndarray) -> np.ndarray:
+    return np.asarray(states, dtype=np.float32)  # the observation is the state
+
+
+def pump_energy(observation: np.ndarray) -> int:
+    """Push the way the car moves: it rocks higher each swing and reaches the flag in
+    about 100-120 steps from the valley."""
+    return 2 if observation[1] >= 0 else 0
+
+
 MOUNTAINCAR = EnvSpec(
     name="mountaincar",
     make=make,
@@ -40,4 +50,7 @@ MOUNTAINCAR = EnvSpec(
     description="gymnasium MountainCar-v0 dynamics; 3 discrete actions; reward -1 per step",
     render=render_mountaincar,
     set_state=set_state,
+    observe=observe,
+    observation_labels=("position", "velocity"),
+    demo_policy=pump_energy,
 )

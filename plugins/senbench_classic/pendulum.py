@@ -29,6 +29,25 @@ def set_state(env: gymnasium.Env, state: np.ndarray) -> None:
     env.last_u = None  # gymnasium draws an arrow for the last torque; there is none
 
 
+def observe(states: np.ndarray) -> np.ndarray:
+    """gymnasium's observation (cos θ, sin θ, θ̇): no jump where θ wraps at ±π."""
+    states = np.asarray(states, dtype=np.float64)
+    return np.stack([np.cos(states[:, 0]), np.sin(states[:, 0]), states[:, 1]], 1).astype(
+        np.float32)
+
+
+def swing_up(observation: np.ndarray) -> np.ndarray:
+    """Pump energy towards the upright energy, then balance with a PD law near the top."""
+    cos, sin, velocity = (float(v) for v in observation)
+    angle = np.arctan2(sin, cos)
+    if cos > 0.9:
+        torque = -10.0 * angle - 2.0 * velocity
+    else:
+        energy = 0.5 * velocity**2 / 3.0 + 10.0 * cos / 2.0  # per unit m·l²/3
+        torque = 2.0 * np.sign(velocity * (5.0 - energy)) if velocity != 0 else 2.0
+    return np.array([np.clip(torque, -2.0, 2.0)], dtype=np.float32)
+
+
 PENDULUM = EnvSpec(
     name="pendulum",
     make=make,
@@ -47,4 +66,7 @@ PENDULUM = EnvSpec(
     description="gymnasium Pendulum-v1 dynamics; torque in [-2, 2]; 200 steps per episode",
     render=render_pendulum,
     set_state=set_state,
+    observe=observe,
+    observation_labels=("cos_angle", "sin_angle", "angular_velocity"),
+    demo_policy=swing_up,
 )

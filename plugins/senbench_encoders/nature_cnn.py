@@ -1,0 +1,43 @@
+"""The Nature-DQN convolutional network (Mnih et al. 2015) with a regression head: three
+convolutions (8×8 stride 4, 4×4 stride 2, 3×3 stride 1), a hidden layer, the state."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from senbench import EncoderSpec
+
+
+@dataclass
+class NatureCNNConfig:
+    hidden: int = 512
+    """Units of the fully connected layer."""
+
+    def __post_init__(self) -> None:
+        if self.hidden < 1:
+            raise ValueError(f"hidden must be positive, got {self.hidden}")
+
+
+def build(input_shape: tuple[int, int, int], outputs: int, config: NatureCNNConfig):
+    import torch
+    from torch import nn
+
+    stack, height, width = input_shape
+    convolutions = nn.Sequential(
+        nn.Conv2d(stack, 32, 8, 4), nn.ReLU(),
+        nn.Conv2d(32, 64, 4, 2), nn.ReLU(),
+        nn.Conv2d(64, 64, 3, 1), nn.ReLU(),
+        nn.Flatten(),
+    )
+    with torch.no_grad():
+        features = convolutions(torch.zeros(1, stack, height, width)).shape[1]
+    return nn.Sequential(convolutions, nn.Linear(features, config.hidden), nn.ReLU(),
+                         nn.Linear(config.hidden, outputs))
+
+
+NATURE_CNN = EncoderSpec(
+    name="nature-cnn",
+    build=build,
+    config=NatureCNNConfig,
+    description="Nature-DQN CNN (3 convolutions, 1 hidden layer) regressing the state",
+)

@@ -1,0 +1,77 @@
+"""The SEN-DRL state encoder network (Fang et al., Section 3, Fig. 2).
+
+Four basic blocks, each two 3×3 convolutions with a shortcut jumping over them, the
+resolution halved by each block; then two fully connected layers to the state. The
+feature map is flattened, not pooled: where the car or the rod is in the frame is the
+state, and global pooling would throw that away.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from senbench import EncoderSpec
+
+
+@dataclass
+class SenResNetConfig:
+    widths: list[int] = field(default_factory=lambda: [16, 32, 64, 64])
+    """Channels of the four blocks."""
+    hidden: int = 256
+    """Units of the first fully connected layer."""
+    batch_norm: bool = True
+    first_stride: int = 2
+    """Stride of the first block. 2 (64×64 → 32, 16, 8, 4): 1.2k images/s training on 2
+    cores; 1 keeps the first block at full resolution: 5× slower."""
+
+    def __post_init__(self) -> None:
+        if len(self.widths) != 4 or min(self.widths) < 1:
+            raise ValueError(f"widths must be four positive channel counts, got {self.widths}")
+        if self.hidden < 1:
+            raise ValueError(f"hidden must be positive, got {self.hidden}")
+        if self.first_stride not in (1, 2):
+            raise ValueError(f"first_stride must be 1 or 2, got {self.first_stride}")
+
+
+def build(input_shape: tuple[int, int, int], outputs: int, config: SenResNetConfig):
+    import torch
+    from torch import nn
+
+    def norm(channels: int) -> nn.Module:
+        return nn.BatchNorm2d(channels) if config.batch_norm else nn.Identity()
+
+    class BasicBlock(nn.Module):
+        def __init__(self, c_in: int, c_out: int, stride: int):
+            super().__init__()
+            self.conv1 = nn.Conv2d(c_in, c_out, 3, stride, 1, bias=not config.batch_norm)
+            self.norm1 = norm(c_out)
+            self.conv2 = nn.Conv2d(c_out, c_out, 3, 1, 1, bias=not config.batch_norm)
+            self.norm2 = norm(c_out)
+            self.shortcut = nn.Identity() if stride == 1 and c_in == c_out else nn.Sequential(
+                nn.Conv2d(c_in, c_out, 1, stride, bias=not config.batch_norm), norm(c_out))
+
+        def forward(self, x):
+            y = torch.relu(self.norm1(self.conv1(x)))
+            return torch.relu(self.norm2(self.conv2(y)) + self.shortcut(x))
+
+    stack, height, width = input_shape
+    widths = config.widths
+    blocks = [BasicBlock(stack, widths[0], config.first_stride)]
+    blocks += [BasicBlock(widths[i - 1], widths[i], 2) for i in range(1, 4)]
+    with torch.no_grad():
+        features = nn.Sequential(*blocks)(torch.zeros(1, stack, height, width)).numel()
+    return nn.Sequential(
+        *blocks,
+        nn.Flatten(),
+        nn.Linear(features, config.hidden),
+        nn.ReLU(),
+        nn.Linear(config.hidden, outputs),
+    )
+
+
+SEN_RESNET = EncoderSpec(
+    name="sen-resnet",
+    build=build,
+    config=SenResNetConfig,
+    description="SEN-DRL's encoder: 4 residual blocks of two 3x3 convolutions, 2 FC layers",
+)
