@@ -158,5 +158,82 @@ def plugins() -> None:
     out.print(table)
 
 
+encoder_app = typer.Typer(help="State encoders: train, inspect.", no_args_is_help=True)
+plot_app = typer.Typer(help="PNG figures.", no_args_is_help=True)
+app.add_typer(encoder_app, name="encoder")
+app.add_typer(plot_app, name="plot")
+
+
+@encoder_app.command("train")
+@user_errors
+def encoder_train(
+    env: Annotated[str, typer.Option(help="Env plugin.")],
+    arch: Annotated[str, typer.Option(help="Encoder architecture.")] = "sen-resnet",
+    sampler: Annotated[str, typer.Option(help="Sampler of labelled frames.")] = "uniform",
+    samples: Annotated[int, typer.Option(min=10, help="Labelled pairs in the pool.")] = 50_000,
+    fraction: Annotated[float, typer.Option(min=0.0001, max=1.0,
+                                            help="Share of the pool trained on (d).")] = 0.2,
+    seed: Annotated[int, typer.Option(min=0)] = 0,
+    epochs: Annotated[int, typer.Option(min=1)] = 30,
+    batch_size: Annotated[int, typer.Option(min=2)] = 128,
+    learning_rate: Annotated[float, typer.Option(min=0.0)] = 1e-3,
+    patience: Annotated[int, typer.Option(min=1)] = 4,
+    test_samples: Annotated[int, typer.Option(min=10)] = 5000,
+    height: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    width: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    stack: Annotated[int, typer.Option(min=1, max=16)] = 2,
+    cache: Annotated[Path, typer.Option(help="Encoder cache.")] = Path("results/encoders"),
+    threads: Annotated[int, typer.Option(min=0, help="torch threads (0: all cores).")] = 0,
+) -> None:
+    """Train a state encoder (or load it if this spec was trained before) and print its
+    held-out error per dimension."""
+    import pandas as pd
+
+    from senbench.encoders import EncoderRequest, Training, cache_dir, load_or_train
+    from senbench.pixels import PixelSpec
+    from senbench.plugins import registries
+    from senbench.runner import set_threads, usable_cores
+
+    regs = registries()
+    regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
+    set_threads(threads or usable_cores())
+    request = EncoderRequest(
+        env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
+        samples=samples, fraction=fraction, seed=seed,
+        training=Training(epochs, batch_size, learning_rate, 0.1, patience, test_samples))
+    load_or_train(cache, request, regs, err.print)
+    folder = cache_dir(cache, request)
+    metrics = pd.read_parquet(folder / "metrics.parquet")
+    errors = metrics[metrics["kind"] == "test"]
+    table = Table(title=f"{env}: {arch}, {request.train_size} of {samples} {sampler} samples "
+                        f"(d = {100 * fraction:g}%), held-out RMSE on {test_samples}")
+    table.add_column("dimension")
+    table.add_column("RMSE", justify="right")
+    table.add_column("% of range", justify="right")
+    for row in errors.itertuples():
+        table.add_row(row.dimension, f"{row.rmse:.4g}", f"{row.rmse_pct_of_range:.2f}")
+    out.print(table)
+    epochs_run = int(metrics["epoch"].max())
+    out.print(f"encoder {request.id}: {epochs_run} epochs, trained in "
+              f"{errors['wall_s'].iloc[0]:.0f} s → {folder}")
+
+
+@plot_app.command("traces")
+@user_errors
+def plot_traces_command(
+    paths: Annotated[list[Path] | None, typer.Argument(
+        help="Encoder folders, or caches holding them.")] = None,
+    env: Annotated[str | None, typer.Option(help="Only this env's encoders.")] = None,
+    png: Annotated[Path, typer.Option("--out", help="PNG file to write.")] = Path("traces.png"),
+) -> None:
+    """Predicted vs true observation along a successful trajectory, one line per encoder
+    (the paper's Figs. 6 and 10)."""
+    from senbench.plots import find_encoders, plot_traces
+
+    encoders = find_encoders(paths or [Path("results/encoders")], env)
+    plot_traces(encoders, png)
+    out.print(f"{png}: {len(encoders)} encoders")
+
+
 def main() -> None:  # pragma: no cover - console entry for `python -m senbench`
     sys.exit(app())

@@ -129,11 +129,12 @@ def trace(encoder: StateEncoder, request: EncoderRequest,
     env_spec = regs.envs.get(request.env)
     if env_spec.demo_policy is None or env_spec.observe is None:
         return None
-    game = make_env(env_spec, "pixels", TRACE_STEPS, {}, request.pixels)
+    steps = min(TRACE_STEPS, env_spec.max_episode_steps)
+    game = make_env(env_spec, "pixels", steps, {}, request.pixels)
     frames, info = game.reset(seed=0)
     labels = list(env_spec.observation_labels)
     rows = []
-    for step in range(TRACE_STEPS):
+    for step in range(steps):
         true = env_spec.observe(np.asarray(info["state"])[None])[0]
         guess = encoder(frames[None])[0]
         rows += [{"step": step, "dimension": labels[i], "true": float(true[i]),
@@ -151,7 +152,9 @@ def _write_metrics(out: Path, request: EncoderRequest, epochs: list[dict], error
     rows += [{"kind": "test", "dimension": e["dimension"], "rmse": e["rmse"],
               "rmse_pct_of_range": e["rmse_pct_of_range"], "wall_s": train_wall}
              for e in errors]
-    table = pa.Table.from_pylist(rows)
+    columns = ["kind", "epoch", "train_loss", "val_loss", "dimension", "rmse",
+               "rmse_pct_of_range", "wall_s"]
+    table = pa.Table.from_pylist([{c: row.get(c) for c in columns} for row in rows])
     for name, value in (("encoder_id", request.id), ("env", request.env),
                         ("arch", request.arch), ("sampler", request.sampler),
                         ("samples", request.samples), ("fraction", request.fraction),

@@ -23,6 +23,8 @@ def build(input_shape: tuple[int, int, int], outputs: int, config: NatureCNNConf
     from torch import nn
 
     stack, height, width = input_shape
+    if min(height, width) < 36:
+        raise ValueError(f"nature-cnn needs frames of at least 36x36, got {height}x{width}")
     convolutions = nn.Sequential(
         nn.Conv2d(stack, 32, 8, 4), nn.ReLU(),
         nn.Conv2d(32, 64, 4, 2), nn.ReLU(),

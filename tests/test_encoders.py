@@ -1,0 +1,171 @@
+import pickle
+
+import numpy as np
+import pytest
+import torch
+
+from senbench.encoder_training import train
+from senbench.encoders import (
+    EncoderRequest,
+    Training,
+    build_model,
+    cache_dir,
+    load,
+    load_or_train,
+)
+from senbench.observations import make_env
+from senbench.pixels import PixelSpec
+from senbench.plugins import registries
+from senbench.results import read_results
+from senbench.runner import run_suite
+from senbench.suite import load_suite
+
+SMALL = PixelSpec(32, 32, 2)
+
+
+TINY = {"widths": [8, 8, 16, 16], "hidden": 32}
+
+
+def request(env="mountaincar", arch="sen-resnet", **kwargs):
+    values = dict(env=env, pixels=SMALL, arch=arch, sampler="uniform", samples=300,
+                  fraction=1.0, training=Training(epochs=2, test_samples=100),
+                  arch_config=TINY if arch == "sen-resnet" else {})
+    return EncoderRequest(**{**values, **kwargs})
+
+
+@pytest.mark.parametrize("arch", ["sen-resnet", "nature-cnn"])
+@pytest.mark.parametrize("env,outputs", [("mountaincar", 2), ("pendulum", 3)])
+def test_architectures_map_frame_stacks_to_the_observation(arch, env, outputs):
+    for pixels in (PixelSpec(64, 64, 2), PixelSpec(48, 80, 3)):
+        model = build_model(request(env, arch, pixels=pixels, arch_config={}), registries(),
+                            outputs)
+        out = model(torch.rand(5, pixels.stack, pixels.height, pixels.width))
+        assert out.shape == (5, outputs)
+
+
+def test_a_small_encoder_fits_a_small_dataset(tmp_path):
+    torch.set_num_threads(1)
+    fit = request(samples=400, training=Training(epochs=25, patience=25, test_samples=200,
+                                                 validation=0.1))
+    result = train(fit, registries(), tmp_path / "enc")
+    losses = [e["train_loss"] for e in result["epochs"]]
+    assert losses[-1] < losses[0] / 10
+    position = next(e for e in result["errors"] if e["dimension"] == "position")
+    assert position["rmse_pct_of_range"] < 15  # far better than guessing the mean (≈ 29%)
+
+
+def test_a_second_request_with_the_same_spec_loads_the_cache(tmp_path):
+    torch.set_num_threads(1)
+    said = []
+    first = load_or_train(tmp_path, request(), registries(), said.append)
+    model = cache_dir(tmp_path, request()) / "model.pt"
+    stamp = model.stat().st_mtime_ns
+    second = load_or_train(tmp_path, request(), registries(), said.append)
+    assert model.stat().st_mtime_ns == stamp
+    assert "training" in said[0] and said[-1].endswith("cached, loaded")
+    frames = np.random.default_rng(0).integers(0, 255, (3, 2, 32, 32), dtype=np.uint8)
+    assert np.array_equal(first(frames), second(frames))
+    assert request().id != request(fraction=0.5).id != request(seed=1).id
+
+
+def test_checkpoints_load_with_weights_only_and_refuse_code(tmp_path):
+    torch.set_num_threads(1)
+    load_or_train(tmp_path, request(), registries())
+    model = cache_dir(tmp_path, request()) / "model.pt"
+    saved = torch.load(model, weights_only=True)
+    assert set(saved) == {"model", "mean", "std"}
+
+    class Payload:
+        def __reduce__(self):
+            return (print, ("this would run code",))
+
+    torch.save({"model": Payload(), "mean": saved["mean"], "std": saved["std"]}, model)
+    with pytest.raises(pickle.UnpicklingError):
+        load(tmp_path, request(), registries())
+
+
+@pytest.mark.parametrize("sampler", ["uniform", "rollout"])
+@pytest.mark.parametrize("env", ["mountaincar", "pendulum"])
+def test_sampled_frames_are_the_renderers_frames_of_the_labelled_state(sampler, env):
+    spec = registries().envs.get(env)
+    frames, labels = registries().samplers.get(sampler).sample(spec, 50, SMALL, 3)
+    assert frames.shape == (50, 2, 32, 32) and frames.dtype == np.uint8
+    if env == "mountaincar":
+        states = np.stack([labels[:, 0], labels[:, 1]], 1)
+    else:  # the label is (cos, sin, velocity); the frame shows the angle
+        states = np.stack([np.arctan2(labels[:, 1], labels[:, 0]), labels[:, 2]], 1)
+    drawn = spec.render(states.astype(np.float64), SMALL.size)
+    assert np.abs(drawn.astype(int) - frames[:, -1].astype(int)).max() <= 1
+    if sampler == "uniform":  # the stack follows the dynamics: the older frame differs
+        assert (frames[:, 0] != frames[:, 1]).any(axis=(1, 2)).mean() > 0.9
+
+
+def test_the_encoded_observation_is_the_encoders_estimate_not_the_state(tmp_path):
+    torch.set_num_threads(1)
+    encoder = load_or_train(tmp_path, request(), registries())
+    spec = registries().envs.get("mountaincar")
+    env = make_env(spec, "encoded", 200, {}, SMALL, encoder)
+    pixels = make_env(spec, "pixels", 200, {}, SMALL)
+    obs, info = env.reset(seed=4)
+    frames, _ = pixels.reset(seed=4)
+    assert env.observation_space.shape == (2,) and env.observation_space.contains(obs)
+    assert np.array_equal(obs, encoder(frames[None])[0])
+    for _ in range(20):
+        obs, _, _, _, info = env.step(2)
+        frames, *_ = pixels.step(2)
+        assert np.array_equal(obs, encoder(frames[None])[0])
+        assert not np.array_equal(obs, info["state"].astype(np.float32))
+
+
+SEN = """\
+name: sen
+envs:
+  mountaincar: {}
+methods:
+  sen-sarsa:
+    agent: sarsa
+    observation: encoded
+    encoder:
+      arch: sen-resnet
+      config: {widths: [8, 8, 16, 16], hidden: 32}
+      samples: 300
+      fraction: 1.0
+      epochs: 2
+      test_samples: 100
+    pixels: {height: 32, width: 32}
+seeds: 2
+budget: 600
+eval: {every: 300, episodes: 1}
+variants:
+  sen-sarsa:
+    encoder.fraction: [0.5, 1.0]
+"""
+
+
+def test_a_suite_trains_each_encoder_once_and_cells_share_it(write_suite, tmp_path):
+    suite = load_suite(write_suite(SEN), registries())
+    assert len(suite.cells) == 4
+    summary = run_suite(suite, tmp_path / "results", workers=2)
+    assert summary.ok == 4, [o.error for o in summary.failed]
+    encoders = sorted(p.name for p in (tmp_path / "results" / "encoders").iterdir()
+                      if p.is_dir())
+    assert len(encoders) == 2  # one per fraction, shared by both seeds
+    results = read_results(tmp_path / "results" / "sen")
+    assert set(results["variant"]) == {"encoder.fraction=0.5", "encoder.fraction=1.0"}
+
+
+def test_suite_checks_encoder_settings(write_suite):
+    from senbench.errors import SuiteError
+
+    bad = SEN.replace("hidden: 32}", "hiden: 32}")
+    with pytest.raises(SuiteError, match="unknown sen-resnet setting 'hiden'. Did you mean"):
+        load_suite(write_suite(bad), registries())
+    bad = SEN.replace("arch: sen-resnet", "arch: resnet")
+    with pytest.raises(SuiteError, match="Known encoders: nature-cnn, sen-resnet"):
+        load_suite(write_suite(bad), registries())
+    bad = SEN.replace("widths: [8, 8, 16, 16]", "widths: [8, 8, 16]")
+    with pytest.raises(SuiteError, match="widths must be four positive channel counts"):
+        load_suite(write_suite(bad), registries())
+    bad = SEN.replace("observation: encoded", "observation: state")
+    with pytest.raises(SuiteError, match="an encoder is needed exactly when"):
+        load_suite(write_suite(bad), registries())
