@@ -44,6 +44,7 @@ SCHEMA = pa.schema(
         ("error", pa.string()),
         ("config", pa.string()),
         ("hyperparams_source", pa.string()),
+        ("encoder_id", pa.string()),
         ("senbench_version", pa.string()),
         ("torch_version", pa.string()),
         ("gymnasium_version", pa.string()),

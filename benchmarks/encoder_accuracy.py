@@ -1,0 +1,51 @@
+"""Encoder accuracy at the default spec, for the paper's d ∈ {2, 10, 20, 100}% of a
+50,000-sample uniform pool, on both envs: held-out RMSE per dimension (units and % of
+range), epochs, training time; then the trace figures of each env.
+
+    .venv/bin/python benchmarks/encoder_accuracy.py [ENV ...]    (≈ 30 min per env, 2 cores)
+
+Encoders go to results/encoders (the cache `senbench run` uses), so a later suite with the
+same spec loads them instead of training.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from senbench.encoders import EncoderRequest, cache_dir, load_or_train
+from senbench.pixels import PixelSpec
+from senbench.plots import find_encoders, plot_traces
+from senbench.plugins import registries
+from senbench.runner import set_threads, usable_cores
+
+CACHE = Path("results/encoders")
+FRACTIONS = (0.02, 0.10, 0.20, 1.00)
+
+
+def main(envs: list[str]) -> None:
+    import json
+
+    set_threads(usable_cores())
+    regs = registries()
+    rows = []
+    for env in envs:
+        requests = [EncoderRequest(env, PixelSpec(), "sen-resnet", "uniform", 50_000, d)
+                    for d in FRACTIONS]
+        for request in requests:
+            load_or_train(CACHE, request, regs, lambda m: print(m, flush=True))
+            spec = json.loads((cache_dir(CACHE, request) / "spec.json").read_text())
+            errors = ", ".join(f"{e['dimension']} {e['rmse']:.4g} "
+                               f"({e['rmse_pct_of_range']:.2f}%)" for e in spec["errors"])
+            rows.append(f"| {env} | {100 * request.fraction:g}% | {request.train_size} | "
+                        f"{errors} | {spec['train_wall_s'] / 60:.1f} min |")
+        ids = {r.id for r in requests}
+        chosen = [e for e in find_encoders([CACHE], env) if e[0]["id"] in ids]
+        plot_traces(chosen, Path(f"docs/images/traces-{env}.png"))
+    print("| env | d | training samples | held-out RMSE (% of range) | training time |")
+    print("| --- | --- | --- | --- | --- |")
+    print("\n".join(rows))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:] or ["mountaincar", "pendulum"])

@@ -1,0 +1,65 @@
+"""State encoder speed on this machine: training images/s (batch 128, Adam) and inference
+frames/s at batch 1 (what an agent pays per step) and batched, for each architecture at
+2x64x64, with 1 thread and with every core.
+
+    .venv/bin/python benchmarks/encoder_speed.py          (≈ 1 min)
+"""
+
+from __future__ import annotations
+
+import time
+
+import torch
+
+from senbench.encoders import EncoderRequest, build_model
+from senbench.pixels import PixelSpec
+from senbench.plugins import registries
+from senbench.runner import set_threads, usable_cores
+
+SECONDS = 3.0
+
+
+def rate(images_per_call: int, call) -> float:
+    call()
+    calls, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < SECONDS:
+        call()
+        calls += 1
+    return calls * images_per_call / elapsed
+
+
+def measure(arch: str, threads: int) -> tuple[float, float, float]:
+    set_threads(threads)
+    torch.manual_seed(0)
+    request = EncoderRequest("mountaincar", PixelSpec(), arch, "uniform", 10, 1.0)
+    model = build_model(request, registries(), 2)
+    optimizer = torch.optim.Adam(model.parameters(), lr=1e-3)
+    batch = torch.rand(128, 2, 64, 64)
+    target = torch.rand(128, 2)
+
+    def train_step():
+        loss = ((model(batch) - target) ** 2).mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+
+    training = rate(128, train_step)
+    model.eval()
+    with torch.no_grad():
+        single = rate(1, lambda: model(batch[:1]))
+        batched = rate(128, lambda: model(batch))
+    return training, single, batched
+
+
+def main() -> None:
+    cores = usable_cores()
+    print(f"{'architecture':12s} {'threads':>7s} {'train img/s':>12s} {'infer b=1':>10s} "
+          f"{'infer b=128':>12s}")
+    for arch in ("sen-resnet", "nature-cnn"):
+        for threads in sorted({1, cores}):
+            training, single, batched = measure(arch, threads)
+            print(f"{arch:12s} {threads:7d} {training:12,.0f} {single:10,.0f} {batched:12,.0f}")
+
+
+if __name__ == "__main__":
+    main()
