@@ -1,0 +1,111 @@
+"""The schema of a suite file, as pydantic models: every key, its type, its default.
+
+Unknown keys are errors (``extra="forbid"``), counts are strict (no "2000", no true), so a
+typo or a wrong type never silently becomes a default.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+
+class StrictModel(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+Count = Annotated[int, Field(strict=True, gt=0)]
+"""A positive whole number, written as one: not "2000", not true, not 2000.0."""
+Seed = Annotated[int, Field(strict=True, ge=0, lt=2**32)]
+
+
+class EnvEntry(StrictModel):
+    max_episode_steps: Count | None = None
+    """Episode cap in steps; the env's own default when absent."""
+    threshold: Annotated[float, Field(allow_inf_nan=False)] | None = None
+    """Evaluation return that counts as solved; the env's default when absent."""
+    budget: Count | None = None
+    """Frames (environment steps) per cell on this env; the suite's budget when absent."""
+    options: dict[str, Any] = {}
+    """Keyword options of the env plugin, e.g. ``goal_velocity`` for mountaincar."""
+
+
+class EncoderEntry(StrictModel):
+    arch: str = "sen-resnet"
+    config: dict[str, Any] = {}
+    """The architecture's hyperparameters."""
+    sampler: str = "uniform"
+    sampler_config: dict[str, Any] = {}
+    samples: Count = 50_000
+    """Labelled (frames, state) pairs in the pool."""
+    fraction: Annotated[float, Field(gt=0, le=1)] = 0.2
+    """Share of the pool used for training: the paper's d% as a fraction."""
+    seed: Seed = 0
+    """The encoder's own seed: cells of every RL seed share one encoder."""
+    epochs: Count = 30
+    batch_size: Annotated[int, Field(strict=True, ge=2)] = 128
+    learning_rate: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1e-3
+    patience: Count = 4
+    test_samples: Count = 5000
+
+
+class PixelsEntry(StrictModel):
+    height: Annotated[int, Field(strict=True, ge=8, le=512)] = 64
+    width: Annotated[int, Field(strict=True, ge=8, le=512)] = 64
+    stack: Annotated[int, Field(strict=True, ge=1, le=16)] = 2
+    """Frames per observation, oldest first: one frame shows no velocity."""
+    renderer: Literal["auto", "gymnasium"] = "auto"
+    """auto: the env plugin's renderer if it has one; gymnasium: gymnasium's render()."""
+
+
+class MethodEntry(StrictModel):
+    agent: str
+    observation: str = "state"
+    hyperparams: dict[str, Any] = {}
+    encoder: EncoderEntry | None = None
+    pixels: PixelsEntry | None = None
+    """Frame size and stack for pixels / encoded observations (default: the suite's)."""
+    envs: Annotated[list[str], Field(min_length=1)] | None = None
+    """Run only on these envs (default: every env of the suite)."""
+
+
+class EvalEntry(StrictModel):
+    every: Count
+    """Frames between evaluations."""
+    episodes: Count = 10
+    """Deterministic episodes per evaluation."""
+
+
+class SuiteModel(StrictModel):
+    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]*$")]
+    description: str = ""
+    envs: Annotated[dict[str, EnvEntry], Field(min_length=1)]
+    methods: Annotated[dict[str, MethodEntry], Field(min_length=1)]
+    seeds: Annotated[list[Seed], Field(min_length=1)]
+    budget: Count
+    """Frames (environment steps) per cell."""
+    eval: EvalEntry
+    threads: Annotated[int, Field(strict=True, ge=1, le=256)] = 1
+    """torch threads per cell. Part of a cell's config: float sums, and so curves, can
+    differ with the thread count, so it is fixed by the suite, not by --workers."""
+    pixels: PixelsEntry = PixelsEntry()
+    """Frame size and stack of pixel observations, unless a method sets its own."""
+    variants: dict[str, dict[str, Annotated[list[Any], Field(min_length=1)]]] = {}
+    """method → {parameter path → values}: one variant per combination of values."""
+
+    @field_validator("envs", mode="before")
+    @classmethod
+    def _empty_env_entries(cls, value: Any) -> Any:
+        if isinstance(value, dict):
+            return {k: ({} if v is None else v) for k, v in value.items()}
+        return value
+
+    @field_validator("seeds", mode="before")
+    @classmethod
+    def _seed_count(cls, value: Any) -> Any:
+        if isinstance(value, int) and not isinstance(value, bool):
+            if not 1 <= value <= 10_000:
+                raise ValueError("a seed count must be between 1 and 10000")
+            return list(range(value))
+        return value
