@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Recorder
+from senbench_agents.sb3 import learn_with_recorder, monitored_vec_env
 
 
 @dataclass
@@ -59,12 +60,10 @@ class PPOAgent:
     def __init__(self, ctx: AgentContext):
         import torch
         from stable_baselines3 import PPO
-        from stable_baselines3.common.monitor import Monitor
-        from stable_baselines3.common.vec_env import DummyVecEnv
 
         cfg: PPOConfig = ctx.config
         activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
-        venv = DummyVecEnv([lambda: Monitor(ctx.make_env()) for _ in range(cfg.n_envs)])
+        venv = monitored_vec_env(ctx, cfg.n_envs)
         self.model = PPO(
             "MlpPolicy",
             venv,
@@ -94,20 +93,7 @@ class PPOAgent:
         return action
 
     def learn(self, budget: int, recorder: Recorder) -> None:
-        from stable_baselines3.common.callbacks import BaseCallback
-
-        class Report(BaseCallback):
-            def _on_step(self) -> bool:
-                for info in self.locals["infos"]:
-                    episode = info.get("episode")
-                    if episode is not None:
-                        recorder.episode(self.num_timesteps, float(episode["r"]), int(episode["l"]))
-                return recorder.step(self.num_timesteps)
-
-        if recorder.step(0):
-            # SB3 stops at the end of a rollout; the callback stops it at the budget itself.
-            self.model.learn(total_timesteps=budget + self.model.n_steps * self.model.n_envs,
-                             callback=Report())
+        learn_with_recorder(self.model, budget, recorder)
 
 
 PPO_SPEC = AgentSpec(

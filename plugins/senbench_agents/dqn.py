@@ -1,0 +1,165 @@
+"""DQN (Mnih et al. 2015) and Double DQN (van Hasselt et al. 2016) from Stable-Baselines3,
+end to end on pixels (a CNN on the frame stack) or on the state (an MLP).
+
+SB3's DQN is used as it is; Double DQN is the one-method subclass below that changes the
+TD target: the online network picks the next action, the target network values it,
+
+    DQN:  y = r + γ (1 − done) max_a Q_target(s', a)
+    DDQN: y = r + γ (1 − done) Q_target(s', argmax_a Q_online(s', a))
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cache
+
+import numpy as np
+
+from senbench import AgentContext, AgentDefaults, AgentSpec, Recorder
+from senbench_agents.sb3 import learn_with_recorder, monitored_vec_env
+
+
+@dataclass
+class DQNConfig:
+    learning_rate: float = 1e-4
+    buffer_size: int = 100_000
+    """Transitions kept; on 2x64x64 frames each costs 16 KB (obs and next obs)."""
+    learning_starts: int = 1000
+    batch_size: int = 32
+    tau: float = 1.0
+    gamma: float = 0.99
+    train_freq: int = 4
+    """Frames between updates."""
+    gradient_steps: int = 1
+    target_update_interval: int = 1000
+    exploration_fraction: float = 0.1
+    exploration_initial_eps: float = 1.0
+    exploration_final_eps: float = 0.05
+    max_grad_norm: float = 10.0
+    net_arch: list[int] = field(default_factory=list)
+    """Hidden layers of the Q head (after the CNN on pixels; the whole MLP on the state)."""
+    features_dim: int = 512
+    """Output of the CNN on pixels (SB3's NatureCNN: 3 convolutions and a linear layer)."""
+
+    def __post_init__(self) -> None:
+        for name in ("buffer_size", "batch_size", "train_freq", "gradient_steps",
+                     "target_update_interval", "features_dim"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.learning_rate <= 0 or self.learning_starts < 0:
+            raise ValueError("learning_rate must be positive and learning_starts >= 0")
+        for name in ("tau", "gamma", "exploration_fraction", "exploration_initial_eps",
+                     "exploration_final_eps"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+
+
+@cache
+def algorithms() -> tuple[type, type]:
+    """(DQN with its TD target as a method, Double DQN): built on first use, so that
+    listing plugins does not import torch."""
+    import torch as th
+    import torch.nn.functional as F
+    from stable_baselines3 import DQN
+
+    class TargetDQN(DQN):
+        def td_target(self, data, discounts) -> th.Tensor:
+            next_q = self.q_net_target(data.next_observations).max(dim=1).values
+            return data.rewards + (1 - data.dones) * discounts * next_q.reshape(-1, 1)
+
+        def train(self, gradient_steps: int, batch_size: int = 100) -> None:
+            """SB3's DQN.train, with the target from ``td_target``."""
+            self.policy.set_training_mode(True)
+            self._update_learning_rate(self.policy.optimizer)
+            losses = []
+            for _ in range(gradient_steps):
+                data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
+                discounts = data.discounts if data.discounts is not None else self.gamma
+                with th.no_grad():
+                    target = self.td_target(data, discounts)
+                current = th.gather(self.q_net(data.observations), dim=1,
+                                    index=data.actions.long())
+                loss = F.smooth_l1_loss(current, target)
+                losses.append(loss.item())
+                self.policy.optimizer.zero_grad()
+                loss.backward()
+                th.nn.utils.clip_grad_norm_(self.policy.parameters(), self.max_grad_norm)
+                self.policy.optimizer.step()
+            self._n_updates += gradient_steps
+            self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+            self.logger.record("train/loss", np.mean(losses))
+
+    class DoubleDQN(TargetDQN):
+        def td_target(self, data, discounts) -> th.Tensor:
+            best = self.q_net(data.next_observations).argmax(dim=1, keepdim=True)
+            next_q = th.gather(self.q_net_target(data.next_observations), dim=1, index=best)
+            return data.rewards + (1 - data.dones) * discounts * next_q
+
+    return TargetDQN, DoubleDQN
+
+
+class DQNAgent:
+    double = False
+
+    def __init__(self, ctx: AgentContext):
+        from gymnasium.spaces import Box
+
+        cfg: DQNConfig = ctx.config
+        venv = monitored_vec_env(ctx, 1)
+        space = venv.observation_space
+        pixels = isinstance(space, Box) and space.dtype == np.uint8 and len(space.shape) == 3
+        policy_kwargs = {"net_arch": list(cfg.net_arch)}
+        if pixels:
+            policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}
+        algorithm = algorithms()[1 if self.double else 0]
+        self.model = algorithm(
+            "CnnPolicy" if pixels else "MlpPolicy", venv,
+            learning_rate=cfg.learning_rate, buffer_size=cfg.buffer_size,
+            learning_starts=cfg.learning_starts, batch_size=cfg.batch_size, tau=cfg.tau,
+            gamma=cfg.gamma, train_freq=cfg.train_freq, gradient_steps=cfg.gradient_steps,
+            target_update_interval=cfg.target_update_interval,
+            exploration_fraction=cfg.exploration_fraction,
+            exploration_initial_eps=cfg.exploration_initial_eps,
+            exploration_final_eps=cfg.exploration_final_eps, max_grad_norm=cfg.max_grad_norm,
+            policy_kwargs=policy_kwargs, seed=ctx.seed, device="cpu", verbose=0,
+        )
+
+    def act(self, observation: np.ndarray):
+        action, _ = self.model.predict(observation, deterministic=True)
+        return int(action)
+
+    def learn(self, budget: int, recorder: Recorder) -> None:
+        learn_with_recorder(self.model, budget, recorder)
+
+
+class DoubleDQNAgent(DQNAgent):
+    double = True
+
+
+ZOO_MOUNTAINCAR = AgentDefaults(
+    values={"learning_rate": 4e-3, "batch_size": 128, "buffer_size": 10_000,
+            "learning_starts": 1000, "gamma": 0.98, "target_update_interval": 600,
+            "train_freq": 16, "gradient_steps": 8, "exploration_fraction": 0.2,
+            "exploration_final_eps": 0.07, "net_arch": [256, 256]},
+    source="rl-baselines3-zoo hyperparams/dqn.yml, MountainCar-v0 (tuned on the state)",
+)
+
+DQN_SPEC = AgentSpec(
+    name="dqn",
+    make=DQNAgent,
+    config=DQNConfig,
+    actions=frozenset({"discrete"}),
+    observations=frozenset({"pixels", "state", "encoded"}),
+    defaults={"mountaincar": ZOO_MOUNTAINCAR},
+    description="Stable-Baselines3 DQN: NatureCNN on pixels, MLP on a state",
+)
+
+DDQN_SPEC = AgentSpec(
+    name="ddqn",
+    make=DoubleDQNAgent,
+    config=DQNConfig,
+    actions=frozenset({"discrete"}),
+    observations=frozenset({"pixels", "state", "encoded"}),
+    defaults={"mountaincar": ZOO_MOUNTAINCAR},
+    description="Double DQN: SB3's DQN with the online network choosing the next action",
+)

@@ -1,0 +1,32 @@
+"""What every Stable-Baselines3 agent shares: a vectorised env from the cell's observation
+pipeline, and learning that reports through the recorder and stops at the budget."""
+
+from __future__ import annotations
+
+from senbench import AgentContext, Recorder
+
+
+def monitored_vec_env(ctx: AgentContext, n_envs: int):
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    return DummyVecEnv([lambda: Monitor(ctx.make_env()) for _ in range(n_envs)])
+
+
+def learn_with_recorder(model, budget: int, recorder: Recorder) -> None:
+    """model.learn, reporting frames and finished episodes to ``recorder`` after every
+    vectorised step and stopping exactly when it says the budget is spent."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Report(BaseCallback):
+        def _on_step(self) -> bool:
+            for info in self.locals["infos"]:
+                episode = info.get("episode")
+                if episode is not None:
+                    recorder.episode(self.num_timesteps, float(episode["r"]), int(episode["l"]))
+            return recorder.step(self.num_timesteps)
+
+    if recorder.step(0):
+        # total_timesteps = budget: SB3's schedules (DQN's exploration) span the budget; the
+        # callback stops collection at the budget itself, mid-rollout if need be.
+        model.learn(total_timesteps=budget, callback=Report())
