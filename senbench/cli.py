@@ -200,7 +200,8 @@ def encoder_train(
     request = EncoderRequest(
         env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
         samples=samples, fraction=fraction, seed=seed,
-        training=Training(epochs, batch_size, learning_rate, 0.1, patience, test_samples))
+        training=Training(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate,
+                          patience=patience, test_samples=test_samples))
     load_or_train(cache, request, regs, err.print)
     folder = cache_dir(cache, request)
     metrics = pd.read_parquet(folder / "metrics.parquet")

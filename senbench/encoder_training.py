@@ -1,10 +1,11 @@
 """Supervised training of a state encoder (the paper's first stage).
 
-Targets are normalised per dimension; Adam on the mean squared error; the best epoch on a
-validation split is kept and training stops when it has not improved for ``patience``
-epochs. Reported errors come from an independent held-out set drawn with another seed:
-RMSE per observation dimension, in its units and as % of its range. Traces follow the env's
-demo policy along one successful trajectory, as the paper's Figs. 6 and 10.
+Targets are normalised per dimension; Adam on the mean squared error, its learning rate cut
+by ``lr_decay`` after each epoch that does not improve the validation loss; the best epoch
+is kept and training stops when none has improved for ``patience`` epochs. Reported errors
+come from an independent held-out set drawn with another seed: RMSE per observation
+dimension, in its units and as % of its range. Traces follow the env's demo policy along one
+successful trajectory, as the paper's Figs. 6 and 10.
 """
 
 from __future__ import annotations
@@ -51,6 +52,8 @@ def train(request: EncoderRequest, regs: Registries, out: Path,
     std = np.maximum(targets[fit].std(axis=0), 1e-6)
     model = build_model(request, regs, targets.shape[1])
     optimizer = torch.optim.Adam(model.parameters(), lr=request.training.learning_rate)
+    scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(
+        optimizer, factor=request.training.lr_decay, patience=0)
     normalised = torch.as_tensor((targets - mean) / std)
     images = torch.from_numpy(frames)  # uint8; scaled per batch to keep memory small
 
@@ -80,6 +83,7 @@ def train(request: EncoderRequest, regs: Registries, out: Path,
             running += loss.item() * len(batch)
             seen += len(batch)
         val_loss = loss_on(val)
+        scheduler.step(val_loss)
         epochs.append({"epoch": epoch, "train_loss": running / max(seen, 1),
                        "val_loss": val_loss, "wall_s": time.perf_counter() - started})
         log(f"  epoch {epoch}: train {epochs[-1]['train_loss']:.4f}, validation {val_loss:.4f}")

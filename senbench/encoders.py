@@ -35,6 +35,8 @@ class Training:
     """Share of the training set held out to pick the best epoch and stop early."""
     patience: int = 4
     """Epochs without a better validation loss before stopping."""
+    lr_decay: float = 0.3
+    """The learning rate is multiplied by this after an epoch without improvement."""
     test_samples: int = 5000
     """Size of the independent held-out set the reported errors come from."""
 
@@ -89,7 +91,7 @@ def encoder_request(cell_config: dict[str, Any]) -> EncoderRequest:
         sampler_config=entry["sampler_config"],
         training=Training(epochs=entry["epochs"], batch_size=entry["batch_size"],
                           learning_rate=entry["learning_rate"], patience=entry["patience"],
-                          test_samples=entry["test_samples"]),
+                          lr_decay=entry["lr_decay"], test_samples=entry["test_samples"]),
     )
 
 

@@ -47,6 +47,7 @@ class EncoderEntry(StrictModel):
     batch_size: Annotated[int, Field(strict=True, ge=2)] = 128
     learning_rate: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1e-3
     patience: Count = 4
+    lr_decay: Annotated[float, Field(gt=0, le=1)] = 0.3
     test_samples: Count = 5000
 
 
