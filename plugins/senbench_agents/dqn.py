@@ -16,7 +16,7 @@ from functools import cache
 import numpy as np
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Recorder
-from senbench_agents.sb3 import learn_with_recorder, monitored_vec_env
+from senbench_agents.sb3 import is_frame_stack, learn_with_recorder, monitored_vec_env
 
 
 @dataclass
@@ -102,12 +102,9 @@ class DQNAgent:
     double = False
 
     def __init__(self, ctx: AgentContext):
-        from gymnasium.spaces import Box
-
         cfg: DQNConfig = ctx.config
         venv = monitored_vec_env(ctx, 1)
-        space = venv.observation_space
-        pixels = isinstance(space, Box) and space.dtype == np.uint8 and len(space.shape) == 3
+        pixels = is_frame_stack(venv.observation_space)
         policy_kwargs = {"net_arch": list(cfg.net_arch)}
         if pixels:
             policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}

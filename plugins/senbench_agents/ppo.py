@@ -1,4 +1,5 @@
-"""PPO (Schulman et al. 2017) from Stable-Baselines3, on the true or encoded state.
+"""PPO (Schulman et al. 2017) from Stable-Baselines3: an MLP actor-critic on the true or
+encoded state, SB3's NatureCNN under it on pixels.
 
 senbench adds only the glue: a vectorised training env built from the cell's observation
 pipeline, a callback that reports frames and episodes through the one recorder protocol
@@ -12,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Recorder
-from senbench_agents.sb3 import learn_with_recorder, monitored_vec_env
+from senbench_agents.sb3 import is_frame_stack, learn_with_recorder, monitored_vec_env
 
 
 @dataclass
@@ -34,7 +35,7 @@ class PPOConfig:
     """State-dependent exploration (continuous actions only)."""
     sde_sample_freq: int = -1
     net_arch: list[int] = field(default_factory=lambda: [64, 64])
-    """Hidden layer widths of the actor and of the critic (separate networks)."""
+    """Hidden layer widths of the actor and of the critic (after the CNN on pixels)."""
     activation: str = "tanh"
     """tanh or relu."""
 
@@ -65,7 +66,7 @@ class PPOAgent:
         activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
         venv = monitored_vec_env(ctx, cfg.n_envs)
         self.model = PPO(
-            "MlpPolicy",
+            "CnnPolicy" if is_frame_stack(venv.observation_space) else "MlpPolicy",
             venv,
             n_steps=cfg.n_steps,
             batch_size=cfg.batch_size,
@@ -101,7 +102,7 @@ PPO_SPEC = AgentSpec(
     make=PPOAgent,
     config=PPOConfig,
     actions=frozenset({"discrete", "continuous"}),
-    observations=frozenset({"state", "encoded"}),
+    observations=frozenset({"state", "encoded", "pixels"}),
     defaults={
         "pendulum": AgentDefaults(
             values={
@@ -124,5 +125,5 @@ PPO_SPEC = AgentSpec(
             "VecNormalize, which senbench does not apply)",
         ),
     },
-    description="Stable-Baselines3 PPO with an MLP actor-critic",
+    description="Stable-Baselines3 PPO: MLP actor-critic; NatureCNN under it on pixels",
 )

@@ -6,6 +6,14 @@ from __future__ import annotations
 from senbench import AgentContext, Recorder
 
 
+def is_frame_stack(space) -> bool:
+    """A pixel observation: (stack, H, W) uint8, for SB3's CnnPolicy."""
+    import numpy as np
+    from gymnasium.spaces import Box
+
+    return isinstance(space, Box) and space.dtype == np.uint8 and len(space.shape) == 3
+
+
 def monitored_vec_env(ctx: AgentContext, n_envs: int):
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv

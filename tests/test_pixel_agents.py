@@ -61,6 +61,10 @@ methods:
     observation: pixels
     hyperparams: {learning_starts: 100, buffer_size: 500, batch_size: 16,
                   train_freq: 4, gradient_steps: 1, features_dim: 64}
+  ppo-pixels:
+    agent: ppo
+    observation: pixels
+    hyperparams: {n_steps: 64, batch_size: 32, n_epochs: 1}
 pixels: {height: 40, width: 40}
 seeds: [0]
 budget: 400
@@ -68,12 +72,12 @@ eval: {every: 200, episodes: 1}
 """
 
 
-def test_dqn_and_ddqn_learn_from_pixels_and_repeat_their_curves(write_suite, tmp_path):
+def test_pixel_agents_learn_from_frames_and_repeat_their_curves(write_suite, tmp_path):
     suite = load_suite(write_suite(PIXELS), registries())
     curves = []
     for run in ("a", "b"):
         summary = run_suite(suite, tmp_path / run)
-        assert summary.ok == 2, [o.error for o in summary.failed]
+        assert summary.ok == 3, [o.error for o in summary.failed]
         frame = read_results(tmp_path / run / "pixels")
         curves.append(frame[frame["kind"] != "cell"][["cell_id", "kind", "step", "return"]]
                       .sort_values(["cell_id", "kind", "step"]).reset_index(drop=True))
