@@ -49,3 +49,4 @@ def cli_env(tmp_path):
     env["PYTHONPATH"] = os.pathsep.join([str(site), str(here)])
     env["COLUMNS"] = "200"
     return env
+

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
+from curves import curves_of
 
 from senbench.evaluation import CellRecorder
 from senbench.plugins import registries
-from senbench.results import read_results
 from senbench.runner import run_suite
 from senbench.specs import AgentContext
 from senbench.suite import load_suite
@@ -95,8 +95,6 @@ def test_the_same_seed_gives_the_same_curves(write_suite, tmp_path):
     for run in ("a", "b"):
         summary = run_suite(suite, tmp_path / run)
         assert summary.ok == 2
-        df = read_results(tmp_path / run / "determinism")
-        curves.append(df[df["kind"] != "cell"][["cell_id", "kind", "step", "return", "length"]]
-                      .sort_values(["cell_id", "kind", "step"]).reset_index(drop=True))
+        curves.append(curves_of(tmp_path / run / "determinism"))
     assert curves[0].equals(curves[1])
     assert len(curves[0]) > 10

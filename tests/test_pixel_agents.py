@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 import torch
+from curves import curves_of
 
 from senbench.plugins import registries
-from senbench.results import read_results
 from senbench.runner import run_suite
 from senbench.specs import AgentContext
 from senbench.suite import load_suite
@@ -78,9 +78,7 @@ def test_pixel_agents_learn_from_frames_and_repeat_their_curves(write_suite, tmp
     for run in ("a", "b"):
         summary = run_suite(suite, tmp_path / run)
         assert summary.ok == 3, [o.error for o in summary.failed]
-        frame = read_results(tmp_path / run / "pixels")
-        curves.append(frame[frame["kind"] != "cell"][["cell_id", "kind", "step", "return"]]
-                      .sort_values(["cell_id", "kind", "step"]).reset_index(drop=True))
+        curves.append(curves_of(tmp_path / run / "pixels"))
     assert curves[0].equals(curves[1])
     evals = curves[0][curves[0]["kind"] == "eval"]
     assert sorted(set(evals["step"])) == [0, 200, 400]

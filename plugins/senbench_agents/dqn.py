@@ -141,22 +141,14 @@ ZOO_MOUNTAINCAR = AgentDefaults(
     source="rl-baselines3-zoo hyperparams/dqn.yml, MountainCar-v0 (tuned on the state)",
 )
 
-DQN_SPEC = AgentSpec(
-    name="dqn",
-    make=DQNAgent,
-    config=DQNConfig,
-    actions=frozenset({"discrete"}),
-    observations=frozenset({"pixels", "state", "encoded"}),
-    defaults={"mountaincar": ZOO_MOUNTAINCAR},
-    description="Stable-Baselines3 DQN: NatureCNN on pixels, MLP on a state",
-)
 
-DDQN_SPEC = AgentSpec(
-    name="ddqn",
-    make=DoubleDQNAgent,
-    config=DQNConfig,
-    actions=frozenset({"discrete"}),
-    observations=frozenset({"pixels", "state", "encoded"}),
-    defaults={"mountaincar": ZOO_MOUNTAINCAR},
-    description="Double DQN: SB3's DQN with the online network choosing the next action",
-)
+def dqn_spec(name: str, agent: type, description: str) -> AgentSpec:
+    return AgentSpec(name=name, make=agent, config=DQNConfig,
+                     actions=frozenset({"discrete"}),
+                     observations=frozenset({"pixels", "state", "encoded"}),
+                     defaults={"mountaincar": ZOO_MOUNTAINCAR}, description=description)
+
+
+DQN_SPEC = dqn_spec("dqn", DQNAgent, "Stable-Baselines3 DQN: NatureCNN on pixels, MLP on a state")
+DDQN_SPEC = dqn_spec("ddqn", DoubleDQNAgent,
+                     "Double DQN: SB3's DQN with the online network choosing the next action")
