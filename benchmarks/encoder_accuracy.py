@@ -15,7 +15,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from senbench.encoders import EncoderRequest, cache_dir, load_or_train
+from senbench.encoders import EncoderRequest, cache_dir, complete, load_or_train
 from senbench.pixels import PixelSpec
 from senbench.plots import find_encoders, plot_traces
 from senbench.plugins import registries
@@ -32,8 +32,8 @@ def main(envs: list[str], fractions: tuple[float, ...] = FRACTIONS) -> None:
     regs = registries()
     rows = []
     for env in envs:
-        requests = [EncoderRequest(env, PixelSpec(), "sen-resnet", "uniform", 50_000, d)
-                    for d in fractions]
+        requests = [complete(EncoderRequest(env, PixelSpec(), "sen-resnet", "uniform", 50_000,
+                                            d), regs) for d in fractions]
         for request in requests:
             load_or_train(CACHE, request, regs, lambda m: print(m, flush=True))
             spec = json.loads((cache_dir(CACHE, request) / "spec.json").read_text())

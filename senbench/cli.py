@@ -189,7 +189,7 @@ def encoder_train(
     held-out error per dimension."""
     import pandas as pd
 
-    from senbench.encoders import EncoderRequest, Training, cache_dir, load_or_train
+    from senbench.encoders import EncoderRequest, Training, cache_dir, complete, load_or_train
     from senbench.pixels import PixelSpec
     from senbench.plugins import registries
     from senbench.runner import set_threads, usable_cores
@@ -202,6 +202,7 @@ def encoder_train(
         samples=samples, fraction=fraction, seed=seed,
         training=Training(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate,
                           patience=patience, test_samples=test_samples))
+    request = complete(request, regs)
     load_or_train(cache, request, regs, err.print)
     folder = cache_dir(cache, request)
     metrics = pd.read_parquet(folder / "metrics.parquet")

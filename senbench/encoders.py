@@ -130,6 +130,17 @@ def build_model(request: EncoderRequest, regs: Registries, outputs: int) -> Any:
     return arch.build(shape, outputs, config)
 
 
+def complete(request: EncoderRequest, regs: Registries) -> EncoderRequest:
+    """The request with its architecture's and sampler's configs filled in with their
+    defaults, so that ``{}`` and the same values written out name the same encoder."""
+    import dataclasses
+
+    arch = regs.encoders.get(request.arch).config(**request.arch_config)
+    sampler = regs.samplers.get(request.sampler).config(**request.sampler_config)
+    return dataclasses.replace(request, arch_config=dataclasses.asdict(arch),
+                               sampler_config=dataclasses.asdict(sampler))
+
+
 def cache_dir(root: Path, request: EncoderRequest) -> Path:
     return Path(root) / request.id
 
@@ -138,6 +149,7 @@ def load(root: Path, request: EncoderRequest, regs: Registries) -> StateEncoder 
     """The cached encoder for ``request``, or None if it was never trained."""
     import torch
 
+    request = complete(request, regs)
     path = cache_dir(root, request) / "model.pt"
     if not path.exists():
         return None
@@ -156,6 +168,7 @@ def load_or_train(root: Path, request: EncoderRequest, regs: Registries,
 
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
+    request = complete(request, regs)
     with open(root / f".{request.id}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # a second process waits here, then loads
         encoder = load(root, request, regs)
