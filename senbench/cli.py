@@ -11,6 +11,7 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from senbench.errors import SenbenchError
@@ -21,9 +22,9 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
-# Piped output (make demo, CI logs) gets tables 120 columns wide rather than rich's 80;
+# Piped output (make demo, CI logs) gets tables 140 columns wide rather than rich's 80;
 # COLUMNS still wins. Messages are never hard-wrapped, so they stay greppable.
-_width = None if sys.stdout.isatty() or os.environ.get("COLUMNS") else 120
+_width = None if sys.stdout.isatty() or os.environ.get("COLUMNS") else 140
 out = Console(width=_width, soft_wrap=True)
 err = Console(stderr=True, soft_wrap=True)
 
@@ -36,7 +37,7 @@ def user_errors(command):
         try:
             return command(*args, **kwargs)
         except SenbenchError as exc:
-            err.print(f"[bold red]error:[/] {exc}", highlight=False, markup=True)
+            err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False)
             raise typer.Exit(exc.exit_code) from None
 
     return wrapper
@@ -87,8 +88,8 @@ def run(
     )
     for outcome in summary.failed:
         last = (outcome.error or "").strip().splitlines()[-1:] or [""]
-        err.print(f"[red]failed[/] {outcome.label} ({outcome.cell_id}): {last[0]}",
-                  highlight=False)
+        err.print(f"[red]failed[/] {escape(outcome.label)} ({outcome.cell_id}): "
+                  f"{escape(last[0])}", highlight=False)
     if summary.interrupted:
         left = summary.total - summary.skipped - len(summary.outcomes)
         err.print(f"interrupted: {left} cells not run; run the same command again to resume")

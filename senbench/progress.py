@@ -8,6 +8,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -63,7 +64,7 @@ class GridProgress:
     def started(self, cell_id: str, label: str, budget: int) -> None:
         if self._progress is None or cell_id in self._done or cell_id in self._cells:
             return
-        self._cells[cell_id] = self._progress.add_task(f"  {label}", total=budget, rate="",
+        self._cells[cell_id] = self._progress.add_task(f"  {escape(label)}", total=budget, rate="",
                                                        last_eval="")
 
     def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None) -> None:
@@ -85,8 +86,9 @@ class GridProgress:
         if outcome.status == "ok":
             final = "" if outcome.final_eval is None else f", final eval {outcome.final_eval:.1f}"
             self._progress.console.print(
-                f"[green]done[/] {outcome.label}{final} ({outcome.wall_s:.1f} s)")
+                f"[green]done[/] {escape(outcome.label)}{final} ({outcome.wall_s:.1f} s)")
         else:
             first_line = (outcome.error or "").strip().splitlines()[-1:] or [""]
             self._progress.console.print(
-                f"[red]failed[/] {outcome.label}: {first_line[0]}", highlight=False)
+                f"[red]failed[/] {escape(outcome.label)}: {escape(first_line[0])}",
+                highlight=False)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from senbench.metrics import FINAL_WINDOW, THRESHOLD_WINDOW, cell_metrics
@@ -66,7 +67,7 @@ def render(summary: pd.DataFrame, console: Console) -> None:
         table.add_column("AUC", justify="right")
         table.add_column("seeds ok / failed", justify="right")
         for row in rows.itertuples():
-            name = row.method + (f" [{row.variant}]" if row.variant else "")
+            name = escape(row.method + (f" [{row.variant}]" if row.variant else ""))
             if row.reached:
                 steps = f"{_pm(row.steps_mean, row.steps_std, 0)} ({row.reached}/{row.seeds_ok})"
             else:

@@ -92,3 +92,15 @@ def test_a_foreign_file_in_the_results_folder_is_a_clear_error(tmp_path):
     (tmp_path / "cells" / "notes.parquet").write_text("not parquet")
     with pytest.raises(ResultsError, match="not a senbench cell result"):
         read_results(tmp_path)
+
+
+def test_variant_labels_show_in_brackets(write_suite, tmp_path):
+    text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
+    text += "variants:\n  sarsa-state:\n    hyperparams.alpha: [0.5, 1.0]\n"
+    run_suite(load_suite(write_suite(text), registries()), tmp_path)
+    done = subprocess.run([sys.executable, "-m", "senbench", "report", str(tmp_path / "rep")],
+                          capture_output=True, text=True, env={"COLUMNS": "200",
+                                                               "PATH": "/usr/bin:/bin"})
+    assert done.returncode == 0, done.stderr
+    assert "sarsa-state [hyperparams.alpha=0.5]" in done.stdout  # not eaten as rich markup
+    assert "sarsa-state [hyperparams.alpha=1.0]" in done.stdout
