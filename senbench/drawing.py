@@ -111,7 +111,7 @@ class FrameTable:
             t = np.mod(t, self.n)
         else:
             t = np.clip(t, 0.0, self.n)
-        i0 = np.minimum(np.floor(t).astype(np.int64), self.n - (0 if self.periodic else 1))
+        i0 = np.minimum(np.floor(t).astype(np.int64), self.n - 1)
         i1 = (i0 + 1) % self.n if self.periodic else i0 + 1
         f = (t - i0).astype(np.float32)[:, None]
         out = np.empty((len(t), self.table.shape[1]), dtype=np.uint8)

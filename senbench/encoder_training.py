@@ -48,6 +48,10 @@ def train(request: EncoderRequest, regs: Registries, out: Path,
     chosen = rng.permutation(request.samples)[:request.train_size]  # the d% of the pool
     n_val = max(1, int(round(request.training.validation * len(chosen))))
     val, fit = chosen[:n_val], chosen[n_val:]
+    if len(fit) < 8:
+        raise ValueError(f"{len(chosen)} samples ({request.fraction:g} of {request.samples}) "
+                         f"leave {len(fit)} to train on after validation: raise samples or "
+                         "fraction")
     mean = targets[fit].mean(axis=0)
     std = np.maximum(targets[fit].std(axis=0), 1e-6)
     model = build_model(request, regs, targets.shape[1])
@@ -84,7 +88,7 @@ def train(request: EncoderRequest, regs: Registries, out: Path,
             seen += len(batch)
         val_loss = loss_on(val)
         scheduler.step(val_loss)
-        epochs.append({"epoch": epoch, "train_loss": running / max(seen, 1),
+        epochs.append({"epoch": epoch, "train_loss": running / seen if seen else np.nan,
                        "val_loss": val_loss, "wall_s": time.perf_counter() - started})
         log(f"  epoch {epoch}: train {epochs[-1]['train_loss']:.4f}, validation {val_loss:.4f}")
         if val_loss < best:
@@ -94,6 +98,9 @@ def train(request: EncoderRequest, regs: Registries, out: Path,
             stale += 1
             if stale >= request.training.patience:
                 break
+    if best_state is None:
+        raise ValueError("the validation loss was never finite: training diverged; lower "
+                         "learning_rate")
     model.load_state_dict(best_state)
     train_wall = time.perf_counter() - started
 

@@ -17,7 +17,8 @@ def find_encoders(paths: list[Path], env: str | None) -> list[tuple[dict, pd.Dat
     for path in paths:
         folders = [path] if (path / "spec.json").exists() else sorted(path.glob("*/"))
         for folder in folders:
-            if not (folder / "spec.json").exists() or not (folder / "traces.parquet").exists():
+            needed = ("spec.json", "traces.parquet", "model.pt")  # model.pt is written last
+            if not all((folder / name).exists() for name in needed):
                 continue
             spec = json.loads((folder / "spec.json").read_text())
             if env is None or spec["env"] == env:
@@ -42,7 +43,10 @@ def plot_traces(encoders: list[tuple[dict, pd.DataFrame]], out: Path) -> None:
         raise ResultsError(f"encoders of several envs ({', '.join(sorted(envs))}): "
                            "pass --env")
     dimensions = list(dict.fromkeys(encoders[0][1]["dimension"]))
-    varying = [k for k in ("arch", "sampler", "samples") if len({s[k] for s, _ in encoders}) > 1]
+    keys = ("arch", "sampler", "samples", "seed", "arch_config", "sampler_config", "pixels",
+            "training")
+    varying = [k for k in keys if len({json.dumps(s[k], sort_keys=True)
+                                       for s, _ in encoders}) > 1]
     fig, axes = plt.subplots(len(dimensions), 1, figsize=(9, 2.6 * len(dimensions)),
                              sharex=True, squeeze=False)
     for row, dimension in enumerate(dimensions):

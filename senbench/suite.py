@@ -25,7 +25,7 @@ from pydantic import BaseModel
 from senbench.errors import SuiteError, unknown_name_message
 from senbench.observations import OBSERVATIONS
 from senbench.registry import Registries
-from senbench.suite_model import MethodEntry, SuiteModel
+from senbench.suite_model import EncoderEntry, MethodEntry, SuiteModel
 from senbench.suite_yaml import Loc, SuiteSource, read_suite_file
 
 
@@ -277,6 +277,16 @@ def _apply_variant(method_name: str, method: MethodEntry, overrides: dict[str, A
         else:
             problem(("variants", method_name, path), "a variant sweeps 'hyperparams.<name>', or "
                     "'encoder.<field>' of a method that has an encoder")
+
+    if encoder is not None and overrides:
+        try:  # a swept value gets the same strict checks as one written in the method
+            encoder = EncoderEntry.model_validate(encoder).model_dump()
+        except pydantic.ValidationError as exc:
+            for err in exc.errors():
+                path = f"encoder.{err['loc'][0]}" if err["loc"] else "encoder"
+                problem(("variants", method_name, path),
+                        f"{err['msg']} (got {_show(err.get('input'))})")
+            encoder = None
 
     def where(key: str) -> Loc:
         return from_variant.get(key, ("methods", method_name, "hyperparams", key))

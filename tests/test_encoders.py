@@ -10,6 +10,7 @@ from senbench.encoders import (
     Training,
     build_model,
     cache_dir,
+    complete,
     load,
     load_or_train,
 )
@@ -58,7 +59,7 @@ def test_a_second_request_with_the_same_spec_loads_the_cache(tmp_path):
     torch.set_num_threads(1)
     said = []
     first = load_or_train(tmp_path, request(), registries(), said.append)
-    model = cache_dir(tmp_path, request()) / "model.pt"
+    model = cache_dir(tmp_path, complete(request(), registries())) / "model.pt"
     stamp = model.stat().st_mtime_ns
     second = load_or_train(tmp_path, request(), registries(), said.append)
     assert model.stat().st_mtime_ns == stamp
@@ -71,7 +72,7 @@ def test_a_second_request_with_the_same_spec_loads_the_cache(tmp_path):
 def test_checkpoints_load_with_weights_only_and_refuse_code(tmp_path):
     torch.set_num_threads(1)
     load_or_train(tmp_path, request(), registries())
-    model = cache_dir(tmp_path, request()) / "model.pt"
+    model = cache_dir(tmp_path, complete(request(), registries())) / "model.pt"
     saved = torch.load(model, weights_only=True)
     assert set(saved) == {"model", "mean", "std"}
 
@@ -203,3 +204,29 @@ def test_sen_sarsa_learns_mountaincar_from_frames(write_suite, tmp_path):
     assert np.convolve(episodes, np.ones(10) / 10, "valid").max() >= -160
     evals = results[results["kind"] == "eval"].sort_values("step")["return"].to_numpy()
     assert evals[0] == -200 and evals[-1] > -190
+
+
+def test_swept_encoder_values_are_checked_like_written_ones(write_suite):
+    from senbench.errors import SuiteError
+
+    bad = SEN.replace("encoder.fraction: [0.5, 1.0]", "encoder.fraction: [0.5, 5]")
+    with pytest.raises(SuiteError, match="variants.sen-sarsa.encoder.fraction"):
+        load_suite(write_suite(bad), registries())
+    same = SEN.replace("encoder.fraction: [0.5, 1.0]", "encoder.fraction: [1]")
+    from senbench.encoders import encoder_request
+
+    swept = load_suite(write_suite(same), registries()).cells[0]
+    written = load_suite(write_suite(SEN.replace("variants:\n  sen-sarsa:\n    encoder.fraction:"
+                                                 " [0.5, 1.0]\n", "")), registries()).cells[0]
+    assert encoder_request(swept.config).id == encoder_request(written.config).id
+
+
+def test_too_few_samples_to_train_on_is_a_clear_error(tmp_path):
+    with pytest.raises(ValueError, match="raise samples or fraction"):
+        train(request(samples=100, fraction=0.02), registries(), tmp_path / "enc")
+
+
+def test_uniform_frames_cannot_stand_in_for_gymnasiums(tmp_path):
+    spec = registries().envs.get("mountaincar")
+    with pytest.raises(ValueError, match="use the rollout sampler"):
+        registries().samplers.get("uniform").sample(spec, 10, PixelSpec(renderer="gymnasium"), 0)

@@ -105,6 +105,9 @@ class DQNAgent:
         cfg: DQNConfig = ctx.config
         venv = monitored_vec_env(ctx, 1)
         pixels = is_frame_stack(venv.observation_space)
+        if pixels and min(venv.observation_space.shape[1:]) < 36:
+            raise ValueError("dqn and ddqn on pixels use SB3's NatureCNN, which needs frames "
+                             "of at least 36x36; set pixels: {height: 36, width: 36} or more")
         policy_kwargs = {"net_arch": list(cfg.net_arch)}
         if pixels:
             policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}

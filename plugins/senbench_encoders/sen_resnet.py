@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from senbench import EncoderSpec
 
 
@@ -58,8 +60,14 @@ def build(input_shape: tuple[int, int, int], outputs: int, config: SenResNetConf
     widths = config.widths
     blocks = [BasicBlock(stack, widths[0], config.first_stride)]
     blocks += [BasicBlock(widths[i - 1], widths[i], 2) for i in range(1, 4)]
+    trunk = nn.Sequential(*blocks).eval()  # eval: sizing must not touch batch-norm stats
     with torch.no_grad():
-        features = nn.Sequential(*blocks)(torch.zeros(1, stack, height, width)).numel()
+        shape = trunk(torch.zeros(1, stack, height, width)).shape
+    trunk.train()
+    if min(shape[2:]) < 2:
+        raise ValueError(f"sen-resnet needs frames of at least {8 * config.first_stride + 1}"
+                         f" pixels a side, got {height}x{width}")
+    features = int(np.prod(shape))
     return nn.Sequential(
         *blocks,
         nn.Flatten(),

@@ -24,6 +24,10 @@ def sample(env: EnvSpec, count: int, pixels: PixelSpec, seed: int,
         raise ValueError(f"env '{env.name}' cannot be put in a chosen state (set_state), "
                          "drawn from one (render) or observed (observe): use the rollout "
                          "sampler")
+    if pixels.renderer == "gymnasium":
+        raise ValueError("the uniform sampler draws with the env plugin's renderer, but these "
+                         "observations come from gymnasium's render(): use the rollout "
+                         "sampler, or renderer: auto")
     rng = np.random.default_rng(seed)
     dynamics = env.make(max_episode_steps=2**31 - 1)
     dynamics.reset(seed=seed)
