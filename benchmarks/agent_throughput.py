@@ -1,0 +1,112 @@
+"""Environment steps (frames) per second of every (agent, observation) pair while learning,
+one torch thread each; then a small grid run with 1 and with 2 workers, side by side.
+
+    .venv/bin/python benchmarks/agent_throughput.py          (≈ 5 min on 2 cores)
+
+The encoded observation uses an untrained sen-resnet (its speed does not depend on its
+weights). DQN / DDQN on pixels use the MountainCar defaults (the zoo's: an update of 8
+gradient steps of batch 128 every 16 frames), so their rate is mostly learning, not env.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+
+from senbench.encoders import EncoderRequest, StateEncoder, build_model, observation_bounds
+from senbench.observations import make_env
+from senbench.pixels import PixelSpec
+from senbench.plugins import registries
+from senbench.runner import run_suite, set_threads
+from senbench.specs import AgentContext
+from senbench.suite import load_suite
+
+PAIRS = [  # (agent, observation, env, frames to time)
+    ("sarsa", "state", "mountaincar", 20_000),
+    ("sarsa", "encoded", "mountaincar", 2_000),
+    ("ppo", "state", "pendulum", 8_192),
+    ("ppo", "encoded", "pendulum", 2_048),
+    ("ppo", "pixels", "pendulum", 2_048),
+    ("dqn", "pixels", "mountaincar", 1_500),
+    ("ddqn", "pixels", "mountaincar", 1_500),
+]
+
+
+class Count:
+    def __init__(self, budget: int):
+        self.budget = budget
+
+    def step(self, steps: int) -> bool:
+        return steps < self.budget
+
+    def episode(self, *args) -> None:
+        pass
+
+
+def untrained_encoder(env_name: str) -> StateEncoder:
+    regs = registries()
+    spec = regs.envs.get(env_name)
+    low, high = observation_bounds(spec)
+    request = EncoderRequest(env_name, PixelSpec(), "sen-resnet", "uniform", 10, 1.0)
+    k = len(low)
+    return StateEncoder(build_model(request, regs, k), np.zeros(k), np.ones(k), low, high)
+
+
+def frames_per_second(agent_name: str, observation: str, env_name: str, frames: int) -> float:
+    regs = registries()
+    spec, agent = regs.envs.get(env_name), regs.agents.get(agent_name)
+    encoder = untrained_encoder(env_name) if observation == "encoded" else None
+    defaults = agent.defaults.get(env_name)
+    config = agent.config(**(defaults.values if defaults else {}))
+    if agent_name in ("dqn", "ddqn"):
+        config.learning_starts = 500  # time learning, not just the warm-up
+
+    def make():
+        return make_env(spec, observation, spec.max_episode_steps, {}, PixelSpec(), encoder)
+
+    learner = agent.make(AgentContext(config, spec, make, 0, 1))
+    start = time.perf_counter()
+    learner.learn(frames, Count(frames))
+    return frames / (time.perf_counter() - start)
+
+
+GRID = textwrap.dedent("""\
+    name: throughput
+    envs:
+      pendulum: {}
+    methods:
+      ppo-state: {agent: ppo}
+    seeds: 4
+    budget: 49152
+    eval: {every: 49152, episodes: 2}
+""")
+
+
+def grid_seconds(workers: int) -> float:
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "grid.yaml"
+        path.write_text(GRID)
+        suite = load_suite(path, registries())
+        start = time.perf_counter()
+        summary = run_suite(suite, Path(tmp) / "results", workers=workers)
+        assert summary.ok == len(suite.cells)
+        return time.perf_counter() - start
+
+
+def main() -> None:
+    set_threads(1)
+    print(f"{'agent':6s} {'observation':12s} {'env':12s} {'frames/s':>9s}")
+    for agent, observation, env, frames in PAIRS:
+        rate = frames_per_second(agent, observation, env, frames)
+        print(f"{agent:6s} {observation:12s} {env:12s} {rate:9,.0f}")
+    one, two = grid_seconds(1), grid_seconds(2)
+    print(f"grid of 4 ppo-state cells x 49k frames: 1 worker {one:.1f} s, 2 workers {two:.1f} s"
+          f" -> {one / two:.2f}x")
+
+
+if __name__ == "__main__":
+    main()
