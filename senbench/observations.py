@@ -37,12 +37,12 @@ class PhysicalStateInfo(gymnasium.Wrapper):
 
 
 def state_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any],
-              pixels: PixelSpec | None = None) -> gymnasium.Env:
+              pixels: PixelSpec | None = None, encoder: Any = None) -> gymnasium.Env:
     return PhysicalStateInfo(spec.make(max_episode_steps=max_episode_steps, **options), spec)
 
 
 def pixel_env(spec: EnvSpec, max_episode_steps: int, options: Mapping[str, Any],
-              pixels: PixelSpec | None = None) -> gymnasium.Env:
+              pixels: PixelSpec | None = None, encoder: Any = None) -> gymnasium.Env:
     """Stacked grayscale frames, from the env plugin's renderer when it has one (and
     ``pixels.renderer`` is not "gymnasium"), else from gymnasium's ``render()``."""
     pixels = pixels or PixelSpec()
@@ -82,12 +82,10 @@ OBSERVATIONS: dict[str, Builder] = {
     "pixels": pixel_env,
     "encoded": encoded_env,
 }
-"""Observation name → ``build(env_spec, max_episode_steps, options, pixels[, encoder])``."""
+"""Observation name → ``build(env_spec, max_episode_steps, options, pixels, encoder)``."""
 
 
 def make_env(spec: EnvSpec, observation: str, max_episode_steps: int,
              options: Mapping[str, Any], pixels: PixelSpec | None = None,
              encoder: Any = None) -> gymnasium.Env:
-    if observation == "encoded":
-        return encoded_env(spec, max_episode_steps, options, pixels, encoder)
-    return OBSERVATIONS[observation](spec, max_episode_steps, options, pixels)
+    return OBSERVATIONS[observation](spec, max_episode_steps, options, pixels, encoder)
