@@ -237,3 +237,18 @@ def test_results_folder_that_is_a_file_is_a_clear_error(write_suite, tmp_path):
     (tmp_path / "results").write_text("not a folder")
     with pytest.raises(SenbenchError, match="cannot write results"):
         run(write_suite, tmp_path, SARSA)
+
+
+def test_a_temp_file_of_a_killed_writer_not_yet_reaped_is_removed(tmp_path):
+    from senbench.results import remove_stray_temp_files
+
+    writer = subprocess.Popen(["sleep", "30"])
+    stray = tmp_path / f".abcdef.{writer.pid}.tmp"
+    stray.write_text("half a file")
+    assert remove_stray_temp_files(tmp_path) == 0  # a live writer's file stays
+    writer.kill()
+    time.sleep(0.2)  # killed, not yet waited for: a zombie
+    try:
+        assert remove_stray_temp_files(tmp_path) == 1 and not stray.exists()
+    finally:
+        writer.wait()
