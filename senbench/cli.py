@@ -236,7 +236,3 @@ def plot_traces_command(
     encoders = find_encoders(paths or [Path("results/encoders")], env)
     plot_traces(encoders, png)
     out.print(f"{png}: {len(encoders)} encoders")
-
-
-def main() -> None:  # pragma: no cover - console entry for `python -m senbench`
-    sys.exit(app())

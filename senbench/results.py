@@ -59,8 +59,6 @@ SCHEMA = pa.schema(
         ("peak_rss_mb", pa.float64()),
     ]
 )
-KINDS = ("eval", "episode", "cell")
-STATUSES = ("ok", "failed")
 
 
 def cells_dir(results_root: str | Path, suite_name: str) -> Path:

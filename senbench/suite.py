@@ -12,7 +12,6 @@ import dataclasses
 import hashlib
 import itertools
 import json
-import re
 import reprlib
 import typing
 from dataclasses import dataclass
@@ -368,7 +367,3 @@ def _fits(value: Any, expected: type) -> bool:
     if expected is float:
         return isinstance(value, int | float) and not isinstance(value, bool)
     return isinstance(value, expected)
-
-
-def slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-")
