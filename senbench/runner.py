@@ -17,10 +17,11 @@ import sys
 import threading
 import time
 from collections import deque
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
+from multiprocessing.connection import wait as connection_wait
 from pathlib import Path
-from queue import Empty
 from typing import Any
 
 import psutil
@@ -165,12 +166,19 @@ def _cell_process(cell: Cell, directory: Path, info: RunInfo, events: Any,
     plugins.register_modules(extra_plugins)
     try:
         outcome = run_cell(cell, directory, info,
-                           lambda *args: events.put(("update", *args)))
+                           lambda *args: _tell(events, ("update", *args)))
     except Exception as exc:  # outside the agent: record it as this cell's failure
         outcome = record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
-    events.put(("outcome", outcome))
+    _tell(events, ("outcome", outcome))  # written before this process exits
     events.close()
-    events.join_thread()  # the outcome is in the pipe before this process exits
+
+
+def _tell(events: Any, message: tuple) -> None:
+    """Send to the runner; if it is gone (killed, stopped), this cell has no one to tell."""
+    try:
+        events.send(message)
+    except (BrokenPipeError, ConnectionError):
+        os._exit(1)
 
 
 def _exit_with_parent(runner: int) -> None:
@@ -188,32 +196,39 @@ def _exit_with_parent(runner: int) -> None:
 def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int,
                    progress: GridProgress, summary: RunSummary) -> None:
     context = _context()
-    events = context.Queue()
     waiting = deque(todo)
     running: dict[str, tuple[Cell, Any]] = {}
+    pipes: dict[str, Any] = {}
     outcomes: dict[str, CellOutcome] = {}
     extra = plugins.registered_module_names()
     try:
         while waiting or running:
             while waiting and len(running) < workers:
                 cell = waiting.popleft()
+                # A pipe per cell, not a shared Queue: a Queue's semaphore vanishes with the
+                # runner, and a cell still unpacking its arguments then dies with a traceback.
+                reader, writer = context.Pipe(duplex=False)
                 process = context.Process(
                     target=_cell_process, daemon=True, name=f"senbench-cell-{cell.id}",
-                    args=(cell, directory, info, events, extra, os.getpid()))
-                process.start()
-                running[cell.id] = (cell, process)
+                    args=(cell, directory, info, writer, extra, os.getpid()))
+                with _signals_held():  # a Ctrl-C mid-start would orphan a half-made cell
+                    process.start()
+                    running[cell.id] = (cell, process)
+                    pipes[cell.id] = reader
+                writer.close()
                 progress.started(cell.id, cell.label, cell.config["budget"])
-            _drain(events, progress, outcomes, timeout=0.2)
+            _drain(pipes, progress, outcomes, timeout=0.2)
             for cell_id, (cell, process) in list(running.items()):
                 if process.exitcode is None:
                     continue
                 deadline = time.monotonic() + 2.0
                 while cell_id not in outcomes and time.monotonic() < deadline:
-                    _drain(events, progress, outcomes, timeout=0.05)
+                    _drain(pipes, progress, outcomes, timeout=0.05)
                 outcome = outcomes.pop(cell_id, None)
                 if outcome is None:
                     outcome = record_lost_cell(cell, directory, info, _death(process.exitcode))
                 del running[cell_id]
+                pipes.pop(cell_id).close()
                 summary.outcomes.append(outcome)
                 progress.finished(outcome)
     except BaseException:
@@ -225,19 +240,30 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
         raise
 
 
-def _drain(events: Any, progress: GridProgress, outcomes: dict[str, CellOutcome],
+@contextmanager
+def _signals_held():
+    """Hold SIGINT and SIGTERM until the block ends; they are then delivered as usual."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _drain(pipes: dict[str, Any], progress: GridProgress, outcomes: dict[str, CellOutcome],
            timeout: float) -> None:
-    block = True
-    while True:
+    """Read whatever the running cells have sent, waiting up to ``timeout`` for the first."""
+    for reader in connection_wait(list(pipes.values()), timeout):
         try:
-            event, *args = events.get(block, timeout) if block else events.get_nowait()
-        except Empty:
-            return
-        block = False
-        if event == "outcome":
-            outcomes[args[0].cell_id] = args[0]
-        else:
-            progress.update(*args)
+            while reader.poll():
+                event, *args = reader.recv()
+                if event == "outcome":
+                    outcomes[args[0].cell_id] = args[0]
+                else:
+                    progress.update(*args)
+        except (EOFError, OSError):  # the cell ended; its exit status tells how
+            continue
 
 
 def _death(code: int | None) -> str:

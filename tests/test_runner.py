@@ -198,7 +198,7 @@ def test_ctrl_c_stops_cleanly_leaving_only_finished_cells(write_suite, tmp_path,
         process.terminate()  # what a batch scheduler sends, to the runner only
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, stdout + stderr
-    assert "Traceback" not in stderr and "run the same command again to resume" in stderr
+    assert "Traceback" not in stderr and "run the same command again to resume" in stderr, stderr
     files = list(cells.glob("*.parquet"))
     assert 1 <= len(files) < 6
     assert all(finished_status(f) == "ok" for f in files)
