@@ -106,7 +106,8 @@ def train(request: EncoderRequest, regs: Registries, out: Path,
 
     env_spec = regs.envs.get(request.env)
     low, high = observation_bounds(env_spec)
-    encoder = StateEncoder(model, mean, std, low, high)
+    encoder = StateEncoder(model, mean, std, low, high,
+                           traceable=regs.encoders.get(request.arch).traceable)
     test_frames, test_targets = draw(request, regs, request.training.test_samples,
                                      request.seed + HELD_OUT_SEED)
     predicted = np.concatenate([encoder(test_frames[s:s + 512])

@@ -172,7 +172,7 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
             pixels = None  # in the config (and the id) only where frames are drawn
             if method.observation != "state":
                 pixels = (method.pixels or model.pixels).model_dump()
-            defaults = agent.defaults.get(env_name)
+            defaults = agent.defaults_for(env_name, method.observation)
             source_note = defaults.source if defaults else "agent defaults"
             for variant, overrides in _variants(model.variants.get(method_name, {})):
                 hyperparams, encoder, where = _apply_variant(

@@ -7,6 +7,7 @@ import torch
 from senbench.encoder_training import train
 from senbench.encoders import (
     EncoderRequest,
+    StateEncoder,
     Training,
     build_model,
     cache_dir,
@@ -230,3 +231,36 @@ def test_uniform_frames_cannot_stand_in_for_gymnasiums(tmp_path):
     spec = registries().envs.get("mountaincar")
     with pytest.raises(ValueError, match="use the rollout sampler"):
         registries().samplers.get("uniform").sample(spec, 10, PixelSpec(renderer="gymnasium"), 0)
+
+
+class Branchy(torch.nn.Module):
+    """Output depends on the input through Python control flow, which a trace would fix."""
+
+    def forward(self, x):
+        if float(x.mean()) > 0.5:
+            return x.mean(dim=(2, 3))
+        return -x.mean(dim=(2, 3))
+
+
+def test_the_encoder_runs_frozen_only_for_architectures_that_declare_it():
+    torch.set_num_threads(1)
+    rng = np.random.default_rng(0)
+    frames = rng.integers(0, 256, (1, 2, 32, 32), dtype=np.uint8)
+    low, high = np.full(2, -2.0), np.full(2, 2.0)
+    # Not declared traceable: every input takes its own branch, as in eager PyTorch.
+    branchy = StateEncoder(Branchy(), np.zeros(2), np.ones(2), low, high)
+    signs = set()
+    for batch in (frames // 4, 255 - frames // 4):
+        expected = Branchy()(torch.as_tensor(batch, dtype=torch.float32) / 255).numpy()
+        assert np.allclose(branchy(batch), expected)
+        signs.add(bool(expected[0, 0] > 0))
+    assert signs == {True, False} and not branchy._frozen
+
+    assert registries().encoders.get("sen-resnet").traceable
+    model = build_model(request(), registries(), 2)
+    encoder = StateEncoder(model, np.zeros(2), np.ones(2), low, high, traceable=True)
+    estimate = encoder(frames)
+    assert isinstance(encoder._frozen[(1, 2, 32, 32)], torch.jit.ScriptModule)
+    with torch.no_grad():
+        eager = model(torch.as_tensor(frames, dtype=torch.float32) / 255).numpy()
+    assert np.allclose(estimate, np.clip(eager, low, high), atol=1e-5)

@@ -100,3 +100,96 @@ def test_dqn_stops_exactly_at_the_budget():
     cfg = agent.config(learning_starts=50, buffer_size=200, train_freq=4)
     agent.make(AgentContext(cfg, spec, spec.make, 0, 1)).learn(333, Log())
     assert steps[0] == 0 and steps[-1] == 333 and np.all(np.diff(steps) == 1)
+
+
+def test_dqn_takes_its_pixel_defaults_on_pixels_and_its_state_defaults_on_the_state(
+        write_suite):
+    suite = load_suite(write_suite("""\
+        name: defaults
+        envs:
+          mountaincar: {}
+        methods:
+          dqn-pixels: {agent: dqn, observation: pixels}
+          dqn-state: {agent: dqn}
+          dqn-pixels-set: {agent: dqn, observation: pixels, hyperparams: {train_freq: 8}}
+        seeds: 1
+        budget: 100
+        eval: {every: 100, episodes: 1}
+        """), registries())
+    params = {c.config["method"]: c.config["hyperparams"] for c in suite.cells}
+    assert params["dqn-pixels"]["train_freq"] == 4 and params["dqn-pixels"]["batch_size"] == 32
+    assert params["dqn-pixels"]["learning_starts"] == 10_000
+    assert params["dqn-state"]["train_freq"] == 16 and params["dqn-state"]["batch_size"] == 128
+    assert params["dqn-pixels-set"]["train_freq"] == 8  # a suite still overrides
+
+
+def test_optimize_memory_usage_stores_each_frame_once():
+    spec = registries().envs.get("mountaincar")
+    agent = registries().agents.get("dqn")
+    sizes = {}
+    for optimize in (False, True):
+        cfg = agent.config(learning_starts=50, buffer_size=300, optimize_memory_usage=optimize,
+                           features_dim=32)
+
+        def make():
+            from senbench.observations import make_env
+            from senbench.pixels import PixelSpec
+
+            return make_env(spec, "pixels", 200, {}, PixelSpec(40, 40, 2))
+
+        learner = agent.make(AgentContext(cfg, spec, make, 0, 1))
+        buffer = learner.model.replay_buffer
+        sizes[optimize] = buffer.observations.nbytes + (
+            getattr(buffer, "next_observations", np.empty(0)).nbytes)
+        learner.learn(120, type("R", (), {"step": lambda s, n: n < 120,
+                                          "episode": lambda s, *a: None})())
+    assert sizes[True] * 2 == sizes[False] == 2 * 300 * 2 * 40 * 40
+
+
+ENCODER = ("{arch: sen-resnet, config: {widths: [8, 8, 16, 16], hidden: 32}, samples: 300, "
+           "fraction: 1.0, epochs: 2, test_samples: 100}")
+DQN = "{learning_starts: 50, buffer_size: 300, batch_size: 16, features_dim: 32}"
+PPO = "{n_envs: 1, n_steps: 64, batch_size: 32, n_epochs: 1}"
+SEVEN = f"""\
+name: seven
+envs:
+  mountaincar: {{max_episode_steps: 100}}
+  pendulum: {{max_episode_steps: 100}}
+methods:
+  sarsa-state: {{agent: sarsa, envs: [mountaincar]}}
+  sen-sarsa: {{agent: sarsa, observation: encoded, envs: [mountaincar], encoder: {ENCODER}}}
+  dqn-pixels: {{agent: dqn, observation: pixels, envs: [mountaincar], hyperparams: {DQN}}}
+  ddqn-pixels: {{agent: ddqn, observation: pixels, envs: [mountaincar], hyperparams: {DQN}}}
+  ppo-state: {{agent: ppo, envs: [pendulum], hyperparams: {PPO}}}
+  sen-ppo: {{agent: ppo, observation: encoded, envs: [pendulum], encoder: {ENCODER},
+            hyperparams: {PPO}}}
+  ppo-pixels: {{agent: ppo, observation: pixels, envs: [pendulum], hyperparams: {PPO}}}
+pixels: {{height: 36, width: 36}}
+seeds: 1
+budget: 300
+eval: {{every: 150, episodes: 1}}
+"""
+
+
+def test_the_papers_seven_methods_run_in_one_suite_and_report(write_suite, tmp_path):
+    """The comparison of the paper end to end, from the command line: encoders trained,
+    every method run on 2 workers, the report printed."""
+    import os
+    import subprocess
+    import sys
+
+    path = write_suite(SEVEN)
+    done = subprocess.run([sys.executable, "-m", "senbench", "run", str(path), "--workers", "2",
+                           "--results", str(tmp_path / "results")],
+                          capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"})
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "suite 'seven': 7 finished, 0 failed" in done.stdout
+    done = subprocess.run([sys.executable, "-m", "senbench", "report",
+                           str(tmp_path / "results" / "seven")],
+                          capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"})
+    assert done.returncode == 0, done.stderr
+    assert "mountaincar: evaluation return" in done.stdout
+    assert "pendulum: evaluation return" in done.stdout
+    for method in ("sarsa-state", "sen-sarsa", "dqn-pixels", "ddqn-pixels", "ppo-state",
+                   "sen-ppo", "ppo-pixels"):
+        assert method in done.stdout

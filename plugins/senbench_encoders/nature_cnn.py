@@ -42,4 +42,5 @@ NATURE_CNN = EncoderSpec(
     build=build,
     config=NatureCNNConfig,
     description="Nature-DQN CNN (3 convolutions, 1 hidden layer) regressing the state",
+    traceable=True,
 )

@@ -82,4 +82,5 @@ SEN_RESNET = EncoderSpec(
     build=build,
     config=SenResNetConfig,
     description="SEN-DRL's encoder: 4 residual blocks of two 3x3 convolutions, 2 FC layers",
+    traceable=True,
 )
