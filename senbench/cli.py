@@ -122,6 +122,31 @@ def report(
 
 @app.command()
 @user_errors
+def compare(
+    a: Annotated[str, typer.Argument(help="A method of --results, or a results folder.")],
+    b: Annotated[str, typer.Argument(help="Another method of --results, or another folder.")],
+    results: Annotated[Path | None, typer.Option(
+        help="The results folder holding methods A and B.")] = None,
+    all_cells: Annotated[bool, typer.Option(
+        "--all", help="Include cells of earlier versions of the suite.")] = False,
+) -> None:
+    """A against B per env: IQM with CIs and the probability that A does better."""
+    from senbench.compare import pairs_across_folders, pairs_in_one_folder, render
+    from senbench.errors import ResultsError
+
+    if results is not None:
+        pairs = pairs_in_one_folder(results, a, b, include_stale=all_cells)
+    elif Path(a).is_dir() and Path(b).is_dir():
+        pairs = pairs_across_folders(Path(a), Path(b), include_stale=all_cells)
+    else:
+        raise ResultsError("name two results folders, or two methods and the folder that "
+                           "holds them: senbench compare sen-sarsa sarsa-state --results "
+                           "results/paper-mountaincar")
+    render(pairs, out)
+
+
+@app.command()
+@user_errors
 def show(
     env: Annotated[str, typer.Argument(help="An env plugin's name.")],
     png: Annotated[Path, typer.Option("--out", help="PNG file to write.")] = Path("frames.png"),
@@ -219,6 +244,27 @@ def encoder_train(
     epochs_run = int(metrics["epoch"].max())
     out.print(f"encoder {request.id}: {epochs_run} epochs, trained in "
               f"{errors['wall_s'].iloc[0]:.0f} s → {folder}")
+
+
+@plot_app.command("curves")
+@user_errors
+def plot_curves_command(
+    results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
+    png: Annotated[Path | None, typer.Option(
+        "--out", help="PNG file to write (default: RESULTS_DIR/curves.png).")] = None,
+    all_cells: Annotated[bool, typer.Option(
+        "--all", help="Include cells of earlier versions of the suite.")] = False,
+) -> None:
+    """Evaluation return against frames, mean and 95% CI band over seeds per method (the
+    paper's Figs. 4, 5, 8 and 9)."""
+    from senbench.plots import plot_curves
+    from senbench.results import read_results
+
+    results = read_results(results_dir, include_stale=all_cells)
+    png = png or results_dir / "curves.png"
+    suite = results["suite"].iloc[0]
+    envs = plot_curves(results, png, f"{suite}: learning curves")
+    out.print(f"{png}: {', '.join(envs)}")
 
 
 @plot_app.command("traces")

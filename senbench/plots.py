@@ -70,3 +70,62 @@ def plot_traces(encoders: list[tuple[dict, pd.DataFrame]], out: Path) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     plt.close(fig)
+
+
+def learning_curves(results: pd.DataFrame) -> dict[str, dict[str, pd.DataFrame]]:
+    """env → method label → finished seeds' evaluation returns (seeds × frames), on the
+    evaluation frames every one of those seeds has."""
+    cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
+    evals = results[results["kind"] == "eval"]
+    evals = evals[evals["cell_id"].isin(cells["cell_id"])]
+    curves: dict[str, dict[str, pd.DataFrame]] = {}
+    for (env, method, variant), group in evals.groupby(["env", "method", "variant"],
+                                                       sort=True):
+        table = group.pivot_table(index="seed", columns="step", values="return")
+        curves.setdefault(env, {})[method + (f" [{variant}]" if variant else "")] = (
+            table.dropna(axis=1))
+    return curves
+
+
+def plot_curves(results: pd.DataFrame, out: Path, title: str) -> list[str]:
+    """Mean evaluation return against frames with a 95% bootstrap band over seeds, one
+    line per method (and variant), one panel per env, the threshold dashed: the paper's
+    Figs. 4, 5, 8 and 9. Returns the envs drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter
+
+    from senbench.stats import mean_ci
+
+    curves = learning_curves(results)
+    if not curves:
+        raise ResultsError("no finished cell with evaluations to plot; run the suite first")
+    cells = results[results["kind"] == "cell"]
+    fig, axes = plt.subplots(1, len(curves), figsize=(7.5 * len(curves), 4.8), squeeze=False)
+    for ax, (env, methods) in zip(axes[0], curves.items(), strict=True):
+        for name, table in methods.items():
+            steps, values = table.columns.to_numpy(dtype=float), table.to_numpy(dtype=float)
+            mean = values.mean(axis=0)
+            (line,) = ax.plot(steps, mean, linewidth=1.8,
+                              label=f"{name} ({values.shape[0]} seeds)")
+            low, high = mean_ci(values)
+            ax.fill_between(steps, low, high, color=line.get_color(), alpha=0.2, linewidth=0)
+        threshold = cells[cells["env"] == env]["threshold"].iloc[0]
+        if pd.notna(threshold) and abs(threshold) != float("inf"):
+            ax.axhline(threshold, color="black", linestyle="--", linewidth=1,
+                       label=f"threshold {threshold:g}")
+        ax.set_title(env)
+        ax.set_xlabel("frames (environment steps)")
+        ax.set_ylabel("evaluation return (mean over seeds, 95% CI band)")
+        ax.xaxis.set_major_formatter(FuncFormatter(
+            lambda x, _: f"{x / 1e6:g}M" if x >= 1e6 else f"{x / 1e3:g}k" if x else "0"))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="lower right")
+    fig.suptitle(title)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return list(curves)

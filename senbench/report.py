@@ -9,28 +9,50 @@ from rich.markup import escape
 from rich.table import Table
 
 from senbench.metrics import FINAL_WINDOW, THRESHOLD_WINDOW, cell_metrics
+from senbench.stats import iqm, stratified_ci
+
+METRICS = {  # summary prefix → (per-cell column, higher is better)
+    "final": ("final_return", True),
+    "steps": ("steps_to_threshold", False),
+    "auc": ("auc", True),
+}
+
+
+def per_cell(results: pd.DataFrame) -> pd.DataFrame:
+    """``cell_metrics`` with ``steps_to_threshold`` of a seed that never reached the
+    threshold set to the budget (censored: it needs at least that many frames), so that
+    every finished seed counts, and ``reached`` saying which did."""
+    cells = cell_metrics(results)
+    cells["reached"] = cells["steps_to_threshold"].notna()
+    ok = cells["status"] == "ok"
+    cells.loc[ok & ~cells["reached"], "steps_to_threshold"] = cells["budget"].astype(float)
+    return cells
 
 
 def summarize(results: pd.DataFrame) -> pd.DataFrame:
-    """Per env × method × variant: mean and std over finished seeds of each metric, how many
+    """Per env × method × variant, over finished seeds: for final return, frames to
+    threshold and AUC, the IQM with its 95% bootstrap interval and the mean ± std; how many
     seeds finished and failed, and how many reached the threshold."""
-    per_cell = cell_metrics(results)
+    cells = per_cell(results)
     rows = []
     keys = ["suite", "env", "method", "variant"]
-    for (suite, env, method, variant), group in per_cell.groupby(keys, sort=True):
+    for (suite, env, method, variant), group in cells.groupby(keys, sort=True):
         ok = group[group["status"] == "ok"]
-        reached = ok["steps_to_threshold"].dropna()
-        rows.append({
+        row = {
             "suite": suite, "env": env, "method": method, "variant": variant,
             "threshold": group["threshold"].iloc[0], "budget": int(group["budget"].max()),
             "seeds_ok": len(ok), "seeds_failed": int((group["status"] != "ok").sum()),
+            "reached": int(ok["reached"].sum()),
             "initial_mean": _mean(ok["initial_return"]),
             "initial_std": _std(ok["initial_return"]),
-            "final_mean": _mean(ok["final_return"]), "final_std": _std(ok["final_return"]),
-            "reached": len(reached),
-            "steps_mean": _mean(reached), "steps_std": _std(reached),
-            "auc_mean": _mean(ok["auc"]), "auc_std": _std(ok["auc"]),
-        })
+        }
+        for prefix, (column, _) in METRICS.items():
+            values = ok[column].to_numpy(dtype=float)
+            low, high = stratified_ci([values]) if len(values) else (np.nan, np.nan)
+            row.update({f"{prefix}_iqm": float(iqm(values)) if len(values) else np.nan,
+                        f"{prefix}_low": low, f"{prefix}_high": high,
+                        f"{prefix}_mean": _mean(ok[column]), f"{prefix}_std": _std(ok[column])})
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -48,6 +70,16 @@ def _pm(mean: float, std: float, digits: int = 1) -> str:
     return f"{mean:,.{digits}f} ± {std:,.{digits}f}"
 
 
+def _cell(row, prefix: str, digits: int = 1) -> str:
+    """Three lines: the IQM, its interval, mean ± std."""
+    value, low, high = (getattr(row, f"{prefix}_{k}") for k in ("iqm", "low", "high"))
+    if np.isnan(value):
+        return "—"
+    interval = "[—]" if np.isnan(low) else f"[{low:,.{digits}f}, {high:,.{digits}f}]"
+    spread = _pm(getattr(row, f"{prefix}_mean"), getattr(row, f"{prefix}_std"), digits)
+    return f"{value:,.{digits}f}\n{interval}\n{spread}"
+
+
 def render(summary: pd.DataFrame, console: Console) -> None:
     several = summary["suite"].nunique() > 1
     for (suite, env), rows in summary.groupby(["suite", "env"], sort=True):
@@ -55,10 +87,11 @@ def render(summary: pd.DataFrame, console: Console) -> None:
         table = Table(
             title=f"{where}: evaluation return; threshold {rows['threshold'].iloc[0]:g}, "
             f"budget {rows['budget'].max():,} frames",
-            caption=f"mean ± std over finished seeds. final: last {FINAL_WINDOW} evaluations. "
-            f"frames to threshold: from where the trailing mean of {THRESHOLD_WINDOW} "
-            "evaluations stays at or above it (seeds reaching it / finished). AUC: mean "
-            "return over the budget.",
+            caption="each metric: IQM, its [95% stratified bootstrap CI], mean ± std, over "
+            f"finished seeds. final: mean of the last {FINAL_WINDOW} evaluations. frames to "
+            f"threshold: from where the trailing mean of {THRESHOLD_WINDOW} evaluations "
+            "stays at or above it; a seed that never gets there counts as the budget "
+            "(seeds reaching it / finished). AUC: mean return over the budget.",
         )
         table.add_column("method", no_wrap=True)
         table.add_column("at frame 0", justify="right")
@@ -69,11 +102,11 @@ def render(summary: pd.DataFrame, console: Console) -> None:
         for row in rows.itertuples():
             name = escape(row.method + (f" [{row.variant}]" if row.variant else ""))
             if row.reached:
-                steps = f"{_pm(row.steps_mean, row.steps_std, 0)} ({row.reached}/{row.seeds_ok})"
+                steps = f"{_cell(row, 'steps', 0)}\n({row.reached}/{row.seeds_ok} reached)"
             else:
                 steps = f"not reached (0/{row.seeds_ok})"
             failed = f"[red]{row.seeds_failed}[/]" if row.seeds_failed else "0"
             table.add_row(name, _pm(row.initial_mean, row.initial_std),
-                          _pm(row.final_mean, row.final_std), steps,
-                          _pm(row.auc_mean, row.auc_std), f"{row.seeds_ok} / {failed}")
+                          _cell(row, "final"), steps, _cell(row, "auc"),
+                          f"{row.seeds_ok} / {failed}")
         console.print(table)

@@ -1,0 +1,127 @@
+"""``senbench compare A B``: one method against another, per env and metric, with the
+probability that a run of A does better than a run of B.
+
+A and B are either two methods of one results folder (``--results DIR``; a variant is
+named as the report prints it, ``sen-sarsa [encoder.fraction=0.2]``), or two results
+folders, whose methods are then paired by name (or, where each folder holds one method
+for an env, those two are paired).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from senbench.errors import ResultsError
+from senbench.report import METRICS, per_cell
+from senbench.results import read_results
+from senbench.stats import improvement_ci, iqm, probability_of_improvement, stratified_ci
+
+LABELS = {"final": "final return", "steps": "frames to threshold", "auc": "AUC"}
+
+
+@dataclass(frozen=True)
+class Side:
+    name: str
+    """How the table names this side: a method label, or folder: label."""
+    cells: pd.DataFrame
+    """Finished cells of one method (per_cell rows)."""
+
+
+def label(method: str, variant: str) -> str:
+    return method + (f" [{variant}]" if variant else "")
+
+
+def _finished(results: pd.DataFrame) -> pd.DataFrame:
+    cells = per_cell(results)
+    cells = cells[cells["status"] == "ok"].copy()
+    cells["label"] = [label(m, v) for m, v in zip(cells["method"], cells["variant"], strict=True)]
+    return cells
+
+
+def pairs_in_one_folder(folder: Path, a: str, b: str,
+                        include_stale: bool = False) -> list[tuple[str, Side, Side]]:
+    cells = _finished(read_results(folder, include_stale=include_stale))
+    known = sorted(set(cells["label"]))
+    for name in (a, b):
+        if name not in known:
+            raise ResultsError(f"no finished cells of method '{name}' in {folder}; it has: "
+                             f"{', '.join(known) or 'none'}")
+    pairs = []
+    for env, group in cells.groupby("env", sort=True):
+        if {a, b} <= set(group["label"]):
+            pairs.append((env, Side(a, group[group["label"] == a]),
+                          Side(b, group[group["label"] == b])))
+    if not pairs:
+        raise ResultsError(f"'{a}' and '{b}' never ran on the same env in {folder}")
+    return pairs
+
+
+def pairs_across_folders(a: Path, b: Path,
+                         include_stale: bool = False) -> list[tuple[str, Side, Side]]:
+    left = _finished(read_results(a, include_stale=include_stale))
+    right = _finished(read_results(b, include_stale=include_stale))
+    pairs = []
+    for env in sorted(set(left["env"]) & set(right["env"])):
+        lg, rg = left[left["env"] == env], right[right["env"] == env]
+        common = sorted(set(lg["label"]) & set(rg["label"]))
+        if not common and lg["label"].nunique() == 1 and rg["label"].nunique() == 1:
+            common = [(lg["label"].iloc[0], rg["label"].iloc[0])]
+        else:
+            common = [(name, name) for name in common]
+        for la, lb in common:
+            pairs.append((env, Side(f"{a.name}: {la}", lg[lg["label"] == la]),
+                          Side(f"{b.name}: {lb}", rg[rg["label"] == lb])))
+    if not pairs:
+        raise ResultsError(f"{a} and {b} share no env and method to compare; name two methods "
+                         "of one folder instead: senbench compare A B --results DIR")
+    return pairs
+
+
+def compare(a: Side, b: Side) -> pd.DataFrame:
+    """Per metric: IQM [CI] of each side and P(A better than B) [CI]; for frames to
+    threshold fewer is better (unreached seeds count as the budget)."""
+    rows = []
+    for prefix, (column, higher_is_better) in METRICS.items():
+        x, y = (side.cells[column].to_numpy(dtype=float) for side in (a, b))
+        sign = 1.0 if higher_is_better else -1.0
+        low, high = improvement_ci(sign * x, sign * y)
+        rows.append({
+            "metric": prefix, "a_iqm": float(iqm(x)), "a_ci": stratified_ci([x]),
+            "b_iqm": float(iqm(y)), "b_ci": stratified_ci([y]),
+            "p_better": probability_of_improvement(sign * x, sign * y),
+            "p_low": low, "p_high": high, "a_seeds": len(x), "b_seeds": len(y),
+        })
+    return pd.DataFrame(rows)
+
+
+def _value(value: float, ci: tuple[float, float], digits: int) -> str:
+    interval = "" if np.isnan(ci[0]) else f" [{ci[0]:,.{digits}f}, {ci[1]:,.{digits}f}]"
+    return f"{value:,.{digits}f}{interval}"
+
+
+def render(pairs: list[tuple[str, Side, Side]], console: Console) -> None:
+    for env, a, b in pairs:
+        table = compare(a, b)
+        out = Table(title=f"{env}: A = {escape(a.name)} ({len(a.cells)} seeds) vs "
+                          f"B = {escape(b.name)} ({len(b.cells)} seeds)",
+                    caption="IQM [95% bootstrap CI] over seeds. P(A better): the chance that "
+                    "a run of A does better than a run of B (higher return or AUC, fewer "
+                    "frames to threshold; ties count half), with its 95% bootstrap CI.")
+        out.add_column("metric")
+        out.add_column("A", justify="right")
+        out.add_column("B", justify="right")
+        out.add_column("P(A better)", justify="right")
+        for row in table.itertuples():
+            digits = 0 if row.metric == "steps" else 1
+            p = f"{row.p_better:.2f}" + ("" if np.isnan(row.p_low)
+                                         else f" [{row.p_low:.2f}, {row.p_high:.2f}]")
+            out.add_row(LABELS[row.metric], _value(row.a_iqm, row.a_ci, digits),
+                        _value(row.b_iqm, row.b_ci, digits), p)
+        console.print(out)

@@ -1,0 +1,99 @@
+"""report, compare and plot curves on crafted results whose statistics are worked by hand."""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from senbench.compare import Side, compare
+from senbench.plots import learning_curves
+from senbench.report import per_cell, summarize
+from senbench.results import read_results, write_cell
+
+# Each seed's curve: -200 at frame 0, then flat at its value v until the budget (4,000), so
+# final return = v; with threshold -110 the trailing mean of 3 stays above it from frame
+# 3,000 when -110 <= v < -65, and never otherwise (then it counts as the budget).
+FINALS = {"a": [-100.0, -105.0, -108.0, -120.0], "b": [-150.0, -140.0, -130.0, -100.0]}
+
+
+def write_fake(root, suite, methods):
+    directory = root / suite / "cells"
+    directory.mkdir(parents=True)
+    ids = []
+    for method in methods:
+        for seed, value in enumerate(FINALS[method]):
+            cell_id = f"{method}{seed:015d}"
+            ids.append(cell_id)
+            common = {"cell_id": cell_id, "suite": suite, "env": "mountaincar",
+                      "method": method, "variant": "", "seed": seed, "threshold": -110.0,
+                      "budget": 4000}
+            rows = [{**common, "kind": "eval", "step": step,
+                     "return": -200.0 if step == 0 else value}
+                    for step in range(0, 4001, 1000)]
+            rows.append({**common, "kind": "cell", "status": "ok", "cell_wall_s": 1.0})
+            write_cell(directory, cell_id, rows)
+    (root / suite / "cells.json").write_text(json.dumps({"cells": ids}))
+    return root / suite
+
+
+def test_probability_of_improvement_per_metric_worked_by_hand(tmp_path):
+    cells = per_cell(read_results(write_fake(tmp_path, "cmp", ["a", "b"])))
+    assert list(cells[cells["method"] == "a"]["steps_to_threshold"]) == [3000, 3000, 3000, 4000]
+    table = compare(Side("a", cells[cells["method"] == "a"]),
+                    Side("b", cells[cells["method"] == "b"])).set_index("metric")
+    # final: -100 beats 3 and ties 1 (3.5); -105, -108, -120 beat 3 each: 12.5 of 16 pairs
+    assert table.loc["final", "p_better"] == pytest.approx(12.5 / 16)
+    # frames (fewer is better): each 3,000 of a beats three 4,000s, ties one 3,000 (3.5 x 3);
+    # a's 4,000 ties three 4,000s (1.5): 12 of 16
+    assert table.loc["steps", "p_better"] == pytest.approx(12 / 16)
+    assert table.loc["final", "a_iqm"] == pytest.approx((-105 - 108) / 2)  # middle half of 4
+    assert table.loc["final", "p_low"] <= table.loc["final", "p_better"] <= table.loc[
+        "final", "p_high"]
+
+
+def test_report_summary_has_iqm_intervals_and_mean_std(tmp_path):
+    summary = summarize(read_results(write_fake(tmp_path, "cmp", ["a", "b"])))
+    a = summary.set_index("method").loc["a"]
+    assert a["final_iqm"] == pytest.approx(-106.5)
+    assert a["final_mean"] == pytest.approx(sum(FINALS["a"]) / 4)
+    assert a["final_low"] <= a["final_iqm"] <= a["final_high"]
+    assert a["reached"] == 3 and a["steps_iqm"] == pytest.approx(3000)
+
+
+def cli(*args):
+    env = {**os.environ, "COLUMNS": "200"}
+    return subprocess.run([sys.executable, "-m", "senbench", *args], capture_output=True,
+                          text=True, env=env)
+
+
+def test_compare_cli_two_methods_two_folders_and_mistakes(tmp_path):
+    folder = write_fake(tmp_path, "cmp", ["a", "b"])
+    done = cli("compare", "a", "b", "--results", str(folder))
+    assert done.returncode == 0, done.stderr
+    assert "P(A better)" in done.stdout and "0.78" in done.stdout and "0.75" in done.stdout
+
+    left, right = write_fake(tmp_path / "l", "one", ["a"]), write_fake(tmp_path / "r", "two", ["b"])
+    done = cli("compare", str(left), str(right))
+    assert done.returncode == 0, done.stderr
+    assert "one: a" in done.stdout and "two: b" in done.stdout and "0.78" in done.stdout
+
+    done = cli("compare", "a", "c", "--results", str(folder))
+    assert done.returncode == 2
+    assert "no finished cells of method 'c'" in done.stderr and "it has: a, b" in done.stderr
+    done = cli("compare", "a", "b")
+    assert done.returncode == 2 and "--results" in done.stderr
+
+
+def test_plot_curves_draws_every_method_on_the_shared_frames(tmp_path):
+    folder = write_fake(tmp_path, "cmp", ["a", "b"])
+    curves = learning_curves(read_results(folder))
+    assert list(curves["mountaincar"]) == ["a", "b"]
+    assert curves["mountaincar"]["a"].shape == (4, 5)
+    done = cli("plot", "curves", str(folder))
+    assert done.returncode == 0, done.stderr
+    png = folder / "curves.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    done = cli("plot", "curves", str(tmp_path / "missing"))
+    assert done.returncode == 2
