@@ -3,12 +3,13 @@ one torch thread each; then a small grid run with 1 and with 2 workers, side by 
 
     .venv/bin/python benchmarks/agent_throughput.py          (≈ 6 min on 2 cores)
 
-Each pair runs with its defaults for that env and observation (``senbench plugins``
-lists their sources). The encoded observation uses an untrained sen-resnet (its speed does
+Each pair runs with its defaults for that env and observation (their sources: the
+README's table of built-in plugins, and every result's ``hyperparams_source``). The encoded observation uses an untrained sen-resnet (its speed does
 not depend on its weights). DQN / DDQN are timed from their first update on, acting
 greedily, so the rate is that of their steady state, not of the warm-up: on pixels they
 update every 4 frames (batch 32); on the state and encoded state the zoo's MountainCar set
-updates 8 times (batch 128) every 16 frames.
+updates 8 times (batch 128) every 16 frames. PPO is timed over whole rollouts, each with
+its update (10 epochs over the rollout in batches of 64).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ PAIRS = [  # (agent, observation, env, frames to time): every pair the agents ac
     ("ppo", "state", "mountaincar", 8_192),
     ("ppo", "encoded", "mountaincar", 4_096),
     ("ppo", "pixels", "mountaincar", 4_096),
-    ("ppo", "state", "pendulum", 8_192),
+    ("ppo", "state", "pendulum", 16_384),
     ("ppo", "encoded", "pendulum", 4_096),
     ("ppo", "pixels", "pendulum", 4_096),
     ("dqn", "state", "mountaincar", 4_000),
@@ -80,6 +81,11 @@ def frames_per_second(agent_name: str, observation: str, env_name: str, frames: 
     def make():
         return make_env(spec, observation, spec.max_episode_steps, {}, PixelSpec(), encoder)
 
+    if agent_name == "ppo":
+        # PPO updates after each rollout; a budget that ends with a rollout stops before
+        # that rollout's update, so time whole rollouts and one frame of the next.
+        rollout = config.n_steps * config.n_envs
+        frames = max(1, round(frames / rollout)) * rollout + config.n_envs
     learner = agent.make(AgentContext(config, spec, make, 0, 1))
     start = time.perf_counter()
     learner.learn(frames, Count(frames))
