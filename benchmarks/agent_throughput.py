@@ -4,8 +4,9 @@ one torch thread each; then a small grid run with 1 and with 2 workers, side by 
     .venv/bin/python benchmarks/agent_throughput.py          (≈ 6 min on 2 cores)
 
 Each pair runs with its defaults for that env and observation (their sources: the
-README's table of built-in plugins, and every result's ``hyperparams_source``). The encoded observation uses an untrained sen-resnet (its speed does
-not depend on its weights). DQN / DDQN are timed from their first update on, acting
+README's table of built-in plugins, and every result's ``hyperparams_source``). The
+encoded observation uses an untrained sen-resnet (its speed does not depend on its
+weights). DQN / DDQN are timed from their first update on, acting
 greedily, so the rate is that of their steady state, not of the warm-up: on pixels they
 update every 4 frames (batch 32); on the state and encoded state the zoo's MountainCar set
 updates 8 times (batch 128) every 16 frames. PPO is timed over whole rollouts, each with
