@@ -273,12 +273,24 @@ def plot_traces_command(
     paths: Annotated[list[Path] | None, typer.Argument(
         help="Encoder folders, or caches holding them.")] = None,
     env: Annotated[str | None, typer.Option(help="Only this env's encoders.")] = None,
+    results: Annotated[Path | None, typer.Option(
+        help="The encoders a suite's cells used, from its results folder (and the "
+        "encoders/ cache beside it).")] = None,
     png: Annotated[Path, typer.Option("--out", help="PNG file to write.")] = Path("traces.png"),
 ) -> None:
     """Predicted vs true observation along a successful trajectory, one line per encoder
     (the paper's Figs. 6 and 10)."""
+    from senbench.errors import ResultsError
     from senbench.plots import find_encoders, plot_traces
+    from senbench.results import read_results
 
+    if results is not None:
+        frame = read_results(results)
+        ids = sorted(set(frame["encoder_id"].dropna()))
+        if not ids:
+            raise ResultsError(f"no cell in {results} ran on an encoder")
+        cache = results.parent / "encoders"
+        paths = [*(paths or []), *(cache / i for i in ids)]
     encoders = find_encoders(paths or [Path("results/encoders")], env)
     plot_traces(encoders, png)
     out.print(f"{png}: {len(encoders)} encoders")

@@ -193,3 +193,9 @@ def test_the_papers_seven_methods_run_in_one_suite_and_report(write_suite, tmp_p
     for method in ("sarsa-state", "sen-sarsa", "dqn-pixels", "ddqn-pixels", "ppo-state",
                    "sen-ppo", "ppo-pixels"):
         assert method in done.stdout
+    png = tmp_path / "traces.png"
+    done = subprocess.run([sys.executable, "-m", "senbench", "plot", "traces", "--results",
+                           str(tmp_path / "results" / "seven"), "--env", "pendulum",
+                           "--out", str(png)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "1 encoders" in done.stdout and png.stat().st_size > 10_000
