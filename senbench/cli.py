@@ -289,8 +289,17 @@ def plot_traces_command(
         ids = sorted(set(frame["encoder_id"].dropna()))
         if not ids:
             raise ResultsError(f"no cell in {results} ran on an encoder")
-        cache = results.parent / "encoders"
-        paths = [*(paths or []), *(cache / i for i in ids)]
+        from senbench.results import find_cell_files
+
+        roots = {f.parent.parent.parent for f in find_cell_files(results)}
+        folders = [next((r / "encoders" / i for r in roots if (r / "encoders" / i).exists()),
+                        None) for i in ids]
+        missing = [i for i, f in zip(ids, folders, strict=True) if f is None]
+        if missing:
+            raise ResultsError(f"encoders {', '.join(missing)} used by {results} are not in "
+                               f"{' or '.join(str(r / 'encoders') for r in sorted(roots))}; "
+                               "run the suite again to train them")
+        paths = [*(paths or []), *folders]
     encoders = find_encoders(paths or [Path("results/encoders")], env)
     plot_traces(encoders, png)
     out.print(f"{png}: {len(encoders)} encoders")

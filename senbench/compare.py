@@ -38,16 +38,25 @@ def label(method: str, variant: str) -> str:
     return method + (f" [{variant}]" if variant else "")
 
 
-def _finished(results: pd.DataFrame) -> pd.DataFrame:
+def _finished(results: pd.DataFrame, folder: Path) -> pd.DataFrame:
+    """Finished cells of one suite, labelled; a folder holding several suites, or several
+    versions of one method and seed (``--all``), cannot be compared seed for seed."""
     cells = per_cell(results)
+    suites = sorted(set(cells["suite"]))
+    if len(suites) > 1:
+        raise ResultsError(f"{folder} holds several suites ({', '.join(suites)}); name one "
+                           "suite's folder, e.g. results/<suite>")
     cells = cells[cells["status"] == "ok"].copy()
     cells["label"] = [label(m, v) for m, v in zip(cells["method"], cells["variant"], strict=True)]
+    if cells.duplicated(["env", "label", "seed"]).any():
+        raise ResultsError(f"{folder}: cells of several versions of the suite share a method "
+                           "and seed; compare without --all")
     return cells
 
 
 def pairs_in_one_folder(folder: Path, a: str, b: str,
                         include_stale: bool = False) -> list[tuple[str, Side, Side]]:
-    cells = _finished(read_results(folder, include_stale=include_stale))
+    cells = _finished(read_results(folder, include_stale=include_stale), folder)
     known = sorted(set(cells["label"]))
     for name in (a, b):
         if name not in known:
@@ -65,8 +74,8 @@ def pairs_in_one_folder(folder: Path, a: str, b: str,
 
 def pairs_across_folders(a: Path, b: Path,
                          include_stale: bool = False) -> list[tuple[str, Side, Side]]:
-    left = _finished(read_results(a, include_stale=include_stale))
-    right = _finished(read_results(b, include_stale=include_stale))
+    left = _finished(read_results(a, include_stale=include_stale), a)
+    right = _finished(read_results(b, include_stale=include_stale), b)
     pairs = []
     for env in sorted(set(left["env"]) & set(right["env"])):
         lg, rg = left[left["env"] == env], right[right["env"] == env]
@@ -76,6 +85,12 @@ def pairs_across_folders(a: Path, b: Path,
         else:
             common = [(name, name) for name in common]
         for la, lb in common:
+            left_budget = int(lg[lg["label"] == la]["budget"].max())
+            right_budget = int(rg[rg["label"] == lb]["budget"].max())
+            if left_budget != right_budget:
+                raise ResultsError(f"{env}: {a} ran {la} for {left_budget:,} frames, {b} ran "
+                                   f"{lb} for {right_budget:,}: frames to threshold and AUC "
+                                   "are only comparable at one budget")
             pairs.append((env, Side(f"{a.name}: {la}", lg[lg["label"] == la]),
                           Side(f"{b.name}: {lb}", rg[rg["label"] == lb])))
     if not pairs:

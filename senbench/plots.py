@@ -73,17 +73,22 @@ def plot_traces(encoders: list[tuple[dict, pd.DataFrame]], out: Path) -> None:
 
 
 def learning_curves(results: pd.DataFrame) -> dict[str, dict[str, pd.DataFrame]]:
-    """env → method label → finished seeds' evaluation returns (seeds × frames), on the
-    evaluation frames every one of those seeds has."""
+    """env → method label → finished cells' evaluation returns (one row per cell, one
+    column per frame), on the evaluation frames every one of those cells has. Labels name
+    the suite when the results hold several."""
     cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
     evals = results[results["kind"] == "eval"]
     evals = evals[evals["cell_id"].isin(cells["cell_id"])]
+    several = evals["suite"].nunique() > 1
     curves: dict[str, dict[str, pd.DataFrame]] = {}
-    for (env, method, variant), group in evals.groupby(["env", "method", "variant"],
-                                                       sort=True):
-        table = group.pivot_table(index="seed", columns="step", values="return")
-        curves.setdefault(env, {})[method + (f" [{variant}]" if variant else "")] = (
-            table.dropna(axis=1))
+    keys = ["suite", "env", "method", "variant"]
+    for (suite, env, method, variant), group in evals.groupby(keys, sort=True):
+        if group.groupby("seed")["cell_id"].nunique().max() > 1:
+            raise ResultsError(f"{suite}: cells of several versions of the suite share "
+                               f"{method} and a seed; plot without --all")
+        table = group.pivot(index="cell_id", columns="step", values="return")
+        name = (f"{suite}: " if several else "") + method + (f" [{variant}]" if variant else "")
+        curves.setdefault(env, {})[name] = table.dropna(axis=1)
     return curves
 
 

@@ -78,6 +78,14 @@ class AgentSpec:
     ``"env:observation"`` for one observation only (that key wins over the env's)."""
     description: str = ""
 
+    def __post_init__(self) -> None:
+        for key in self.defaults:
+            env, _, observation = key.partition(":")
+            if not env or (observation and observation not in self.observations):
+                raise ValueError(f"agent '{self.name}': defaults key '{key}' must be 'env' or "
+                                 f"'env:observation' with an observation in "
+                                 f"{sorted(self.observations)}")
+
     def defaults_for(self, env: str, observation: str) -> AgentDefaults | None:
         return self.defaults.get(f"{env}:{observation}", self.defaults.get(env))
 

@@ -10,7 +10,9 @@ precipice") recommend them, computed with scipy (rliable does not import beside 
   counting half: the Mann-Whitney U statistic over the number of pairs, averaged over the
   strata.
 
-Every bootstrap has a fixed seed, so a report prints the same intervals each time.
+Every bootstrap has a fixed seed, so a report prints the same intervals each time. A NaN
+value (a diverged seed's return) is left out of every statistic here, as ``mean`` in pandas
+leaves it out; the report's seed counts still show it.
 """
 
 from __future__ import annotations
@@ -26,15 +28,26 @@ RESAMPLES = 2000
 SEED = 0
 
 
+def _finite(values: Sequence[float]) -> np.ndarray:
+    values = np.asarray(values, dtype=float)
+    return values[~np.isnan(values)]
+
+
 def iqm(values: Sequence[float], axis: int = -1) -> float | np.ndarray:
     """The mean of the middle 50% (a quarter trimmed from each end; scipy trims
-    ``int(0.25 n)`` values from each end, as rliable does)."""
-    return stats.trim_mean(np.asarray(values, dtype=float), 0.25, axis=axis)
+    ``int(0.25 n)`` values from each end, as rliable does). On a 1-D input NaNs are left
+    out (NaN when nothing is left); ``axis`` serves the vectorised bootstrap."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim == 1:
+        values = _finite(values)
+        if not len(values):
+            return float("nan")
+    return stats.trim_mean(values, 0.25, axis=axis)
 
 
 def _percentile_ci(samples: Sequence[np.ndarray], statistic: Callable[..., np.ndarray],
                    confidence: float, resamples: int, seed: int) -> tuple[float, float]:
-    samples = [np.asarray(s, dtype=float) for s in samples]
+    samples = [_finite(s) for s in samples]
     if any(len(s) < 2 for s in samples):
         return float("nan"), float("nan")  # one run has no spread to resample
     if all(np.ptp(s) == 0 for s in samples):
@@ -63,7 +76,7 @@ def stratified_ci(strata: Sequence[Sequence[float]], statistic: Callable[..., np
 
 def probability_of_improvement(x: Sequence[float], y: Sequence[float]) -> float:
     """P(X > Y) + P(X = Y) / 2 over all pairs of a run of X and a run of Y."""
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    x, y = _finite(x), _finite(y)
     if not len(x) or not len(y):
         return float("nan")
     return float(stats.mannwhitneyu(x, y).statistic / (len(x) * len(y)))

@@ -24,7 +24,7 @@ class EpisodeLog:
 def learn(agent_name, env_name, budget, seed=0, **hyperparams):
     regs = registries()
     env, agent = regs.envs.get(env_name), regs.agents.get(agent_name)
-    values = {**agent.defaults[env_name].values, **hyperparams}
+    values = {**agent.defaults_for(env_name, "state").values, **hyperparams}
     learner = agent.make(AgentContext(agent.config(**values), env, env.make, seed, 1))
     log = EpisodeLog(budget)
     learner.learn(budget, log)

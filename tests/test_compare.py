@@ -18,7 +18,7 @@ from senbench.results import read_results, write_cell
 FINALS = {"a": [-100.0, -105.0, -108.0, -120.0], "b": [-150.0, -140.0, -130.0, -100.0]}
 
 
-def write_fake(root, suite, methods):
+def write_fake(root, suite, methods, budget=4000):
     directory = root / suite / "cells"
     directory.mkdir(parents=True)
     ids = []
@@ -28,7 +28,7 @@ def write_fake(root, suite, methods):
             ids.append(cell_id)
             common = {"cell_id": cell_id, "suite": suite, "env": "mountaincar",
                       "method": method, "variant": "", "seed": seed, "threshold": -110.0,
-                      "budget": 4000}
+                      "budget": budget}
             rows = [{**common, "kind": "eval", "step": step,
                      "return": -200.0 if step == 0 else value}
                     for step in range(0, 4001, 1000)]
@@ -84,6 +84,17 @@ def test_compare_cli_two_methods_two_folders_and_mistakes(tmp_path):
     assert "no finished cells of method 'c'" in done.stderr and "it has: a, b" in done.stderr
     done = cli("compare", "a", "b")
     assert done.returncode == 2 and "--results" in done.stderr
+    write_fake(tmp_path / "l", "three", ["b"])
+    done = cli("compare", "a", "b", "--results", str(tmp_path / "l"))
+    assert done.returncode == 2 and "holds several suites (one, three)" in done.stderr
+
+
+def test_folders_run_at_different_budgets_are_not_compared(tmp_path):
+    left = write_fake(tmp_path / "l", "one", ["a"])
+    right = write_fake(tmp_path / "r", "two", ["b"], budget=8000)
+    done = cli("compare", str(left), str(right))
+    assert done.returncode == 2
+    assert "for 4,000 frames" in done.stderr and "for 8,000" in done.stderr
 
 
 def test_plot_curves_draws_every_method_on_the_shared_frames(tmp_path):

@@ -71,3 +71,11 @@ def test_the_curve_band_is_per_point_and_collapses_where_seeds_agree():
     assert low[1] >= -170 and high[1] <= -130
     one = mean_ci(curves[:1])
     assert np.isnan(one[0]).all() and np.isnan(one[1]).all()
+
+
+def test_a_diverged_seed_nan_is_left_out_of_every_statistic():
+    assert iqm([1.0, 2.0, float("nan"), 3.0]) == pytest.approx(2.0)
+    assert np.isnan(iqm([float("nan")]))
+    assert stratified_ci([[1.0, 2.0, float("nan"), 3.0]]) == stratified_ci([[1.0, 2.0, 3.0]])
+    assert probability_of_improvement([1, 2, 3], [0, 0, float("nan")]) == 1.0
+    assert improvement_ci([1, 2, 3], [0, 0, float("nan")]) == (1.0, 1.0)
