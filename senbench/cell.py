@@ -30,7 +30,8 @@ from senbench.results import write_cell
 from senbench.specs import AgentContext
 from senbench.suite import Cell
 
-ProgressCallback = Callable[[str, int, float, float | None], None]
+ProgressCallback = Callable[[str, int, float, float | None, int | None], None]
+"""(cell id, frames so far, frames/s, last evaluation return, the frame it was taken at)."""
 
 
 @dataclass(frozen=True)

@@ -147,6 +147,100 @@ def compare(
 
 @app.command()
 @user_errors
+def tune(
+    suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")],
+    method: Annotated[str, typer.Option(help="The suite's method to tune.")],
+    trials: Annotated[int, typer.Option(min=1, help="Trials the study should hold in all "
+                                        "(finished and pruned); a rerun resumes.")],
+    env: Annotated[str | None, typer.Option(help="The env, if the method runs on several.")]
+    = None,
+    seeds: Annotated[int, typer.Option(min=1, help="Seeds per trial, run at once.")] = 3,
+    objective: Annotated[str, typer.Option(
+        help="auc, final or steps-to-threshold (mean over the trial's seeds).")] = "auc",
+    storage: Annotated[str | None, typer.Option(
+        help="Optuna storage URL (default: sqlite:///RESULTS/<suite>/tune.db).")] = None,
+    study: Annotated[str | None, typer.Option(
+        help="Study name (default: <method>-<env>-<objective>).")] = None,
+    sampler: Annotated[str, typer.Option(help="tpe or random.")] = "tpe",
+    pruner: Annotated[str, typer.Option(help="median, hyperband or none.")] = "median",
+    seed: Annotated[int | None, typer.Option(help="The sampler's seed.")] = None,
+    workers: Annotated[int, typer.Option(min=0, help="Processes per trial (0: one per "
+                                         "seed, at most the cores).")] = 0,
+    export: Annotated[Path | None, typer.Option(
+        help="Write the best trial as a suite 'methods:' block (YAML) to this file.")] = None,
+    results: Annotated[Path, typer.Option(help="Results root.")] = Path("results"),
+) -> None:
+    """Tune a method's hyperparameters with Optuna: seed-averaged trials, pruning on the
+    seed-mean evaluation curve, a resumable shared study, and the best block exported."""
+    import yaml
+
+    from senbench.plugins import registries
+    from senbench.runner import usable_cores
+    from senbench.tuning import (
+        best_block,
+        make_pruner,
+        make_sampler,
+        run_study,
+        storage_for,
+        target,
+    )
+
+    suite = _load(suite_file)
+    regs = registries()
+    tgt = target(suite, method, env, regs)
+    name = study or f"{tgt.method}-{tgt.env}-{objective}"
+    done = run_study(
+        tgt, trials=trials, seeds=seeds, objective=objective,
+        storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
+        sampler=make_sampler(sampler, seed), pruner=make_pruner(pruner, tgt),
+        results_root=results, workers=workers or min(seeds, usable_cores()), regs=regs,
+        log=lambda message: err.print(escape(message), highlight=False))
+    _print_trials(done, name, objective)
+    if export is not None:
+        if not _completed(done):
+            err.print(f"study '{name}' has no finished trial yet: nothing to export; run more "
+                      "trials")
+            raise typer.Exit(1)
+        text = yaml.safe_dump(best_block(done, tgt), sort_keys=False)
+        best = done.best_trial
+        export.write_text(f"# senbench tune: study '{name}', trial {best.number}, "
+                          f"{objective} {best.value:,.2f} over {seeds} seeds\n{text}")
+        out.print(f"best trial written to {export}")
+
+
+def _completed(done) -> bool:
+    import optuna
+
+    return any(t.state == optuna.trial.TrialState.COMPLETE for t in done.trials)
+
+
+def _print_trials(done, name: str, objective: str) -> None:
+    import optuna
+
+    states = optuna.trial.TrialState
+    complete = [t for t in done.trials if t.state == states.COMPLETE]
+    counts = {s.name.lower(): sum(t.state == s for t in done.trials)
+              for s in (states.COMPLETE, states.PRUNED, states.FAIL, states.RUNNING)}
+    if not complete:
+        err.print(f"study '{name}': no trial finished yet ({counts})")
+        return
+    reverse = done.direction == optuna.study.StudyDirection.MAXIMIZE
+    best = sorted(complete, key=lambda t: t.value, reverse=reverse)[:5]
+    table = Table(title=f"study '{name}': best trials by {objective}; "
+                        + ", ".join(f"{n} {k}" for k, n in counts.items()))
+    table.add_column("trial", justify="right")
+    table.add_column(objective, justify="right")
+    for key in best[0].params:
+        table.add_column(key, justify="right")
+    for t in best:
+        table.add_row(str(t.number), f"{t.value:,.2f}",
+                      *(f"{t.params[k]:.4g}" if isinstance(t.params[k], float)
+                        else str(t.params[k]) for k in best[0].params))
+    out.print(table)
+
+
+@app.command()
+@user_errors
 def show(
     env: Annotated[str, typer.Argument(help="An env plugin's name.")],
     png: Annotated[Path, typer.Option("--out", help="PNG file to write.")] = Path("frames.png"),

@@ -49,7 +49,7 @@ class CellRecorder:
         budget: int,
         every: int,
         evaluate: Callable[[], tuple[float, float, float]],
-        on_progress: Callable[[int, float, float | None], None] | None = None,
+        on_progress: Callable[[int, float, float | None, int | None], None] | None = None,
     ):
         self.budget = budget
         self.every = every
@@ -69,7 +69,8 @@ class CellRecorder:
     def step(self, steps: int) -> bool:
         self.steps = steps
         due = steps >= self._next_eval or steps >= self.budget
-        if due and self._last_eval_step != steps:
+        evaluated = due and self._last_eval_step != steps
+        if evaluated:
             mean, std, length = self.evaluate()
             self.rows.append({"kind": "eval", "step": steps, "return": mean, "return_std": std,
                               "length": length, "wall_s": self.elapsed()})
@@ -77,9 +78,13 @@ class CellRecorder:
             self._last_eval_step = steps
             self._next_eval = (steps // self.every + 1) * self.every
         now = self.elapsed()
-        if self.on_progress is not None and now - self._last_report >= PROGRESS_INTERVAL_S:
+        # every evaluation is reported as it happens (a tuner prunes on them); steps between
+        # at most every PROGRESS_INTERVAL_S
+        if self.on_progress is not None and (evaluated
+                                             or now - self._last_report >= PROGRESS_INTERVAL_S):
             self._last_report = now
-            self.on_progress(steps, steps / max(now, 1e-9), self.last_eval)
+            self.on_progress(steps, steps / max(now, 1e-9), self.last_eval,
+                             self._last_eval_step)
         return steps < self.budget
 
     def episode(self, steps: int, episode_return: float, length: int) -> None:

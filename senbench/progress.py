@@ -67,7 +67,8 @@ class GridProgress:
         self._cells[cell_id] = self._progress.add_task(f"  {escape(label)}", total=budget, rate="",
                                                        last_eval="")
 
-    def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None) -> None:
+    def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None,
+               eval_step: int | None = None) -> None:
         task = self._cells.get(cell_id)
         if self._progress is None or task is None:
             return

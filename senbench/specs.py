@@ -54,6 +54,34 @@ class EnvSpec:
 
 
 @dataclass(frozen=True)
+class Float:
+    """A real hyperparameter in [low, high]; ``log``: sampled on a log scale."""
+
+    low: float
+    high: float
+    log: bool = False
+
+
+@dataclass(frozen=True)
+class Int:
+    """A whole-number hyperparameter in [low, high]; ``log``: sampled on a log scale."""
+
+    low: int
+    high: int
+    log: bool = False
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One of ``values`` (numbers, strings, booleans or lists of them)."""
+
+    values: tuple[Any, ...]
+
+
+Param = Float | Int | Choice
+
+
+@dataclass(frozen=True)
 class AgentDefaults:
     """Hyperparameters for one env, and where they come from (paper, zoo, our tuning)."""
 
@@ -77,8 +105,16 @@ class AgentSpec:
     """Per-env overrides of the config defaults, keyed by env name, or by
     ``"env:observation"`` for one observation only (that key wins over the env's)."""
     description: str = ""
+    search_space: Mapping[str, Param] = field(default_factory=dict)
+    """What ``senbench tune`` searches: config field → its range. A suite fixes a
+    parameter by setting it in the method's ``hyperparams``."""
 
     def __post_init__(self) -> None:
+        fields = getattr(self.config, "__dataclass_fields__", {})
+        unknown = [name for name in self.search_space if name not in fields]
+        if unknown:
+            raise ValueError(f"agent '{self.name}': search_space names {unknown}, which are not "
+                             "fields of its config")
         for key in self.defaults:
             env, _, observation = key.partition(":")
             if not env or (observation and observation not in self.observations):

@@ -78,6 +78,15 @@ class EvalEntry(StrictModel):
     """Deterministic episodes per evaluation."""
 
 
+class TuneRange(StrictModel):
+    """A narrower search range than the agent declares: ``low``/``high`` for a number,
+    ``values`` (a subset) for a choice."""
+
+    low: Annotated[float, Field(allow_inf_nan=False)] | None = None
+    high: Annotated[float, Field(allow_inf_nan=False)] | None = None
+    values: Annotated[list[Any], Field(min_length=1)] | None = None
+
+
 class SuiteModel(StrictModel):
     name: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]*$")]
     description: str = ""
@@ -94,6 +103,8 @@ class SuiteModel(StrictModel):
     """Frame size and stack of pixel observations, unless a method sets its own."""
     variants: dict[str, dict[str, Annotated[list[Any], Field(min_length=1)]]] = {}
     """method → {parameter path → values}: one variant per combination of values."""
+    tune: dict[str, dict[str, TuneRange]] = {}
+    """method → {hyperparameter → narrower range} for ``senbench tune``; no effect on runs."""
 
     @field_validator("envs", mode="before")
     @classmethod

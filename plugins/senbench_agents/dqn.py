@@ -15,7 +15,7 @@ from functools import cache
 
 import numpy as np
 
-from senbench import AgentContext, AgentDefaults, AgentSpec, Recorder
+from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
 from senbench_agents.sb3 import is_frame_stack, learn_with_recorder, monitored_vec_env
 
 
@@ -164,13 +164,24 @@ ATARI_AT_1M = AgentDefaults(
 )
 
 
+DQN_SPACE = {  # after rl-baselines3-zoo's sample_dqn_params
+    "learning_rate": Float(1e-5, 1e-2, log=True),
+    "batch_size": Choice((16, 32, 64, 128, 256)),
+    "gamma": Choice((0.9, 0.95, 0.98, 0.99, 0.995)),
+    "train_freq": Choice((1, 4, 8, 16)),
+    "target_update_interval": Choice((500, 1000, 5000, 10000)),
+    "exploration_fraction": Float(0.05, 0.5),
+    "exploration_final_eps": Float(0.01, 0.2),
+}
+
+
 def dqn_spec(name: str, agent: type, description: str) -> AgentSpec:
     return AgentSpec(name=name, make=agent, config=DQNConfig,
                      actions=frozenset({"discrete"}),
                      observations=frozenset({"pixels", "state", "encoded"}),
                      defaults={"mountaincar": ZOO_MOUNTAINCAR,
                                "mountaincar:pixels": ATARI_AT_1M},
-                     description=description)
+                     description=description, search_space=DQN_SPACE)
 
 
 DQN_SPEC = dqn_spec("dqn", DQNAgent, "Stable-Baselines3 DQN: NatureCNN on pixels, MLP on a state")

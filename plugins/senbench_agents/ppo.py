@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from senbench import AgentContext, AgentDefaults, AgentSpec, Recorder
+from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
 from senbench_agents.sb3 import is_frame_stack, learn_with_recorder, monitored_vec_env
 
 
@@ -129,4 +129,15 @@ PPO_SPEC = AgentSpec(
         ),
     },
     description="Stable-Baselines3 PPO: MLP actor-critic; NatureCNN under it on pixels",
+    # After rl-baselines3-zoo's sample_ppo_params.
+    search_space={
+        "learning_rate": Float(1e-5, 3e-3, log=True),
+        "n_steps": Choice((256, 512, 1024, 2048)),
+        "batch_size": Choice((32, 64, 128, 256)),
+        "n_epochs": Choice((5, 10, 20)),
+        "gamma": Choice((0.9, 0.95, 0.98, 0.99, 0.995)),
+        "gae_lambda": Choice((0.8, 0.9, 0.92, 0.95, 0.98, 1.0)),
+        "clip_range": Choice((0.1, 0.2, 0.3)),
+        "ent_coef": Float(1e-8, 0.1, log=True),
+    },
 )

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from senbench import AgentContext, AgentDefaults, AgentSpec, Recorder
+from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Int, Recorder
 
 
 @dataclass
@@ -145,4 +145,10 @@ SARSA_SPEC = AgentSpec(
         )
     },
     description="SARSA(λ) with tile coding and replacing traces, vectorised NumPy",
+    search_space={  # the ranges of benchmarks/sarsa_tiles_sweep.py, widened
+        "tilings": Choice((4, 8, 16, 32)),
+        "tiles": Int(4, 12),
+        "alpha": Float(0.05, 2.0, log=True),
+        "trace_decay": Float(0.5, 0.99),
+    },
 )

@@ -1,0 +1,139 @@
+"""senbench tune: a tiny study runs, resumes, exports a block a suite runs; pruning on a
+crafted curve; two processes share one study; a killed trial does not stay RUNNING."""
+
+import os
+import subprocess
+import sys
+import time
+
+import optuna
+import pytest
+import yaml
+
+from senbench import tuning
+from senbench.plugins import registries
+from senbench.suite import load_suite
+
+SUITE = """\
+name: tiny
+envs:
+  mountaincar: {}
+methods:
+  sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}
+seeds: 1
+budget: 2000
+eval: {every: 1000, episodes: 1}
+"""
+
+
+def tune(tmp_path, *args):
+    env = {**os.environ, "COLUMNS": "200"}
+    return subprocess.run([sys.executable, "-m", "senbench", "tune", str(tmp_path / "s.yaml"),
+                           "--method", "sarsa-state", "--seeds", "2", "--seed", "0",
+                           "--results", str(tmp_path / "results"), *args],
+                          capture_output=True, text=True, env=env)
+
+
+def study_of(tmp_path, name="sarsa-state-mountaincar-auc"):
+    return optuna.load_study(study_name=name,
+                             storage=f"sqlite:///{tmp_path / 'results' / 'tiny' / 'tune.db'}")
+
+
+def test_a_study_runs_resumes_and_exports_a_block_a_suite_runs(tmp_path):
+    (tmp_path / "s.yaml").write_text(SUITE)
+    done = tune(tmp_path, "--trials", "2")
+    assert done.returncode == 0, done.stderr
+    assert "2 complete" in done.stdout
+    done = tune(tmp_path, "--trials", "3", "--export", str(tmp_path / "best.yaml"))
+    assert done.returncode == 0, done.stderr
+    trials = study_of(tmp_path).trials
+    assert len(trials) == 3  # resumed: one more, not three more
+    assert {t.params.keys().__len__() for t in trials} == {3}  # tilings is fixed by the suite
+    block = yaml.safe_load((tmp_path / "best.yaml").read_text())
+    hyperparams = block["sarsa-state"]["hyperparams"]
+    assert hyperparams["tilings"] == 8 and set(hyperparams) == {"tilings", "tiles", "alpha",
+                                                                "trace_decay"}
+    suite = SUITE.replace("  sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}\n",
+                          "  " + yaml.safe_dump(block).replace("\n", "\n  ").rstrip() + "\n")
+    (tmp_path / "use.yaml").write_text(suite)
+    ran = subprocess.run([sys.executable, "-m", "senbench", "run", str(tmp_path / "use.yaml"),
+                          "--results", str(tmp_path / "use")], capture_output=True, text=True)
+    assert ran.returncode == 0, ran.stderr
+    assert "1 finished, 0 failed" in ran.stdout
+
+
+def test_two_processes_share_one_study(tmp_path):
+    (tmp_path / "s.yaml").write_text(SUITE)
+    (tmp_path / "results" / "tiny").mkdir(parents=True)
+    env = {**os.environ, "COLUMNS": "200"}
+    args = [sys.executable, "-m", "senbench", "tune", str(tmp_path / "s.yaml"), "--method",
+            "sarsa-state", "--seeds", "1", "--trials", "6", "--results",
+            str(tmp_path / "results")]
+    procs = [subprocess.Popen(args + ["--seed", str(i)], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, env=env) for i in range(2)]
+    for proc in procs:
+        _, stderr = proc.communicate(timeout=300)
+        assert proc.returncode == 0, stderr
+    trials = study_of(tmp_path).trials
+    assert 6 <= len(trials) <= 7  # each process stops once the study holds 6
+    assert len({t.user_attrs["pid"] for t in trials}) == 2
+
+
+def test_the_pruner_stops_a_trial_whose_seed_mean_curve_falls_behind():
+    study = optuna.create_study(direction="maximize", pruner=optuna.pruners.MedianPruner(
+        n_startup_trials=2, n_warmup_steps=0))
+    curves = {0: [-100.0, -90.0], 1: [-110.0, -95.0], 2: [-400.0, -100.0]}
+    reached = {}
+
+    def objective(trial):
+        progress = tuning.PruningProgress(trial, ["a", "b"], lambda message: None)
+        for i, value in enumerate(curves[trial.number]):
+            step = 1000 * (i + 1)
+            progress.update("a", step, 1.0, value, step)
+            reached[trial.number] = step  # one seed alone reports nothing to the pruner
+            progress.update("b", step, 1.0, value + 10, step)
+        return curves[trial.number][-1]
+
+    study.optimize(objective, n_trials=3)
+    states = [t.state for t in study.trials]
+    assert states[:2] == [optuna.trial.TrialState.COMPLETE] * 2
+    assert states[2] == optuna.trial.TrialState.PRUNED and reached[2] == 1000
+    assert study.trials[0].intermediate_values == {1000: -95.0, 2000: -85.0}  # seed means
+
+
+def test_a_killed_trial_is_marked_failed_by_the_next_process(tmp_path, monkeypatch):
+    monkeypatch.setattr(tuning, "HEARTBEAT_S", 1)
+    monkeypatch.setattr(tuning, "GRACE_S", 2)
+    storage = tuning.storage_for(None, tmp_path / "tune.db")
+    study = optuna.create_study(study_name="s", storage=storage)
+    orphan = study.ask()  # a process that started this trial and was then killed
+    storage.record_heartbeat(orphan._trial_id)
+    time.sleep(3)
+    study.optimize(lambda trial: 0.0, n_trials=1)
+    assert study.trials[0].state == optuna.trial.TrialState.FAIL
+
+
+def test_tune_refuses_what_it_cannot_tune(write_suite):
+    suite = load_suite(write_suite(SUITE.replace("tilings: 8", "tilings: 8, tiles: 6, alpha: "
+                                                 "1.0, trace_decay: 0.9")), registries())
+    with pytest.raises(Exception, match="no search space left"):
+        tuning.target(suite, "sarsa-state", None, registries())
+    with pytest.raises(Exception, match="no method 'ppo'"):
+        tuning.target(suite, "ppo", None, registries())
+
+
+def test_a_suite_narrows_the_declared_space_and_cannot_widen_it(write_suite):
+    narrowed = SUITE + "tune:\n  sarsa-state:\n    alpha: {low: 0.5, high: 1.0}\n" \
+        "    tiles: {low: 5, high: 7}\n"
+    tgt = tuning.target(load_suite(write_suite(narrowed), registries()), "sarsa-state", None,
+                        registries())
+    assert tgt.space["alpha"] == tuning.Float(0.5, 1.0, log=True)
+    assert tgt.space["tiles"] == tuning.Int(5, 7)
+    for bad, message in [("alpha: {low: 0.01}", "must lie within"),
+                         ("tilings: {values: [8]}", "fixes it in hyperparams"),
+                         ("tiles: {values: [5]}", "narrowed with 'low' and 'high'"),
+                         ("gamma: {low: 0.9}", "searches")]:
+        text = SUITE + "tune:\n  sarsa-state:\n    " + bad + "\n"
+        with pytest.raises(Exception, match=message):
+            tuning.target(load_suite(write_suite(text), registries()), "sarsa-state", None,
+                          registries())
