@@ -249,7 +249,10 @@ def make_pruner(name: str, tgt: Target) -> Any:
     every = tgt.template.config["eval"]["every"]
     budget = tgt.template.config["budget"]
     if name == "median":
-        return optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=every)
+        # as rl-baselines3-zoo: no pruning in the first 5 trials nor the first third of a
+        # trial, where returns still say little (MountainCar sits at -200 early on)
+        return optuna.pruners.MedianPruner(n_startup_trials=5,
+                                           n_warmup_steps=max(every, budget // 3))
     if name == "hyperband":
         return optuna.pruners.HyperbandPruner(min_resource=every, max_resource=budget)
     if name == "none":
