@@ -142,6 +142,17 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
         if method_name not in model.methods:
             known = list(model.methods)
             problem(("variants", method_name), unknown_name_message("method", method_name, known))
+    for method_name, ranges in model.tune.items():
+        if method_name not in model.methods:
+            known = list(model.methods)
+            problem(("tune", method_name), unknown_name_message("method", method_name, known))
+            continue
+        agent_name = model.methods[method_name].agent
+        agent = regs.agents.get(agent_name) if agent_name in regs.agents else None
+        for name in ranges:
+            if agent is not None and name not in agent.search_space:
+                problem(("tune", method_name, name), f"agent '{agent.name}' searches "
+                        f"{', '.join(agent.search_space) or 'nothing'}; not {name!r}")
     cells: list[Cell] = []
     for method_name, method in model.methods.items():
         agent = _check_method(method_name, method, regs, problem)

@@ -137,3 +137,15 @@ def test_a_suite_narrows_the_declared_space_and_cannot_widen_it(write_suite):
         with pytest.raises(Exception, match=message):
             tuning.target(load_suite(write_suite(text), registries()), "sarsa-state", None,
                           registries())
+
+
+def test_validation_checks_the_tune_block(write_suite):
+    from senbench.errors import SuiteError
+
+    text = SUITE + "tune:\n  sarsa-statee:\n    alpha: {low: 0.5}\n  sarsa-state:\n" \
+        "    gamma: {low: 0.9}\n"
+    with pytest.raises(SuiteError) as info:
+        load_suite(write_suite(text), registries())
+    message = str(info.value)
+    assert "tune.sarsa-statee" in message and "sarsa-state" in message
+    assert "tune.sarsa-state.gamma" in message and "searches tilings, tiles" in message
