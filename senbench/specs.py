@@ -139,6 +139,16 @@ class EncoderSpec:
     """The network's forward has no control flow that depends on its input, so senbench
     may freeze it into TorchScript for inference (1.4x faster at batch 1 for sen-resnet).
     Leave False unless that holds: a trace would silently fix one branch."""
+    search_space: Mapping[str, Param] = field(default_factory=dict)
+    """What ``senbench tune`` searches of the architecture's config, as ``encoder.<field>``
+    (each distinct value trains its own encoder)."""
+
+    def __post_init__(self) -> None:
+        fields = getattr(self.config, "__dataclass_fields__", {})
+        unknown = [name for name in self.search_space if name not in fields]
+        if unknown:
+            raise ValueError(f"encoder '{self.name}': search_space names {unknown}, which are "
+                             "not fields of its config")
 
 
 @dataclass(frozen=True)

@@ -147,12 +147,17 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
             known = list(model.methods)
             problem(("tune", method_name), unknown_name_message("method", method_name, known))
             continue
-        agent_name = model.methods[method_name].agent
-        agent = regs.agents.get(agent_name) if agent_name in regs.agents else None
+        entry = model.methods[method_name]
+        searched = set()
+        if entry.agent in regs.agents:
+            searched |= set(regs.agents.get(entry.agent).search_space)
+        if entry.encoder is not None and entry.encoder.arch in regs.encoders:
+            searched |= {f"encoder.{name}"
+                         for name in regs.encoders.get(entry.encoder.arch).search_space}
         for name in ranges:
-            if agent is not None and name not in agent.search_space:
-                problem(("tune", method_name, name), f"agent '{agent.name}' searches "
-                        f"{', '.join(agent.search_space) or 'nothing'}; not {name!r}")
+            if name not in searched:
+                problem(("tune", method_name, name), f"'{method_name}' searches "
+                        f"{', '.join(sorted(searched)) or 'nothing'}; not {name!r}")
     cells: list[Cell] = []
     for method_name, method in model.methods.items():
         agent = _check_method(method_name, method, regs, problem)

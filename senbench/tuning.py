@@ -37,6 +37,8 @@ from senbench.specs import Choice, Float, Int, Param  # noqa: F401 - Float, Int 
 from senbench.suite import Cell, Suite
 
 TUNE_SEED_OFFSET = 1_000_000
+ENCODER = "encoder."
+"""Prefix of the encoder architecture's parameters in a study."""
 OBJECTIVES = {"auc": "maximize", "final": "maximize", "steps-to-threshold": "minimize"}
 HEARTBEAT_S = 30
 GRACE_S = 90
@@ -73,8 +75,13 @@ def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
                          "(copy it under another name with the values fixed)")
     template = cells[0]
     agent = regs.agents.get(template.config["agent"])
-    fixed = dict(suite.model.methods[method].hyperparams)
+    entry = suite.model.methods[method]
+    fixed = dict(entry.hyperparams)
     space = {name: param for name, param in agent.search_space.items() if name not in fixed}
+    if entry.encoder is not None:  # the encoder's own settings, unless the suite sets them
+        arch = regs.encoders.get(entry.encoder.arch)
+        space.update({f"{ENCODER}{name}": param for name, param in arch.search_space.items()
+                      if name not in entry.encoder.config})
     for name, narrower in suite.model.tune.get(method, {}).items():
         where = f"tune.{method}.{name}"
         if name not in space:
@@ -134,13 +141,23 @@ def trial_cells(tgt: Target, params: dict[str, Any], seeds: int, regs: Any) -> l
     the tuning seeds. Hyperparameters the agent refuses (its own range checks, e.g. a
     batch larger than a rollout) raise ValueError."""
     agent = regs.agents.get(tgt.template.config["agent"])
-    hyperparams = {**tgt.template.config["hyperparams"], **params}
+    encoder_params = {k[len(ENCODER):]: v for k, v in params.items() if k.startswith(ENCODER)}
+    hyperparams = {**tgt.template.config["hyperparams"],
+                   **{k: v for k, v in params.items() if not k.startswith(ENCODER)}}
     resolved = agent.config(**hyperparams)  # raises on a bad combination
     hyperparams = {k: getattr(resolved, k) for k in hyperparams}
+    encoder = copy.deepcopy(tgt.template.config.get("encoder"))
+    if encoder_params:
+        import dataclasses
+
+        arch = regs.encoders.get(encoder["arch"])
+        encoder["config"] = dataclasses.asdict(arch.config(**{**encoder["config"],
+                                                              **encoder_params}))
     cells = []
     for i in range(seeds):
         config = copy.deepcopy(tgt.template.config)
         config["hyperparams"] = hyperparams
+        config["encoder"] = copy.deepcopy(encoder)
         config["seed"] = TUNE_SEED_OFFSET + i
         cells.append(Cell(tgt.suite.name, tgt.env, tgt.method, "", config["seed"], config,
                           tgt.template.hyperparams_source))
@@ -268,7 +285,7 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     from senbench.cell import RunInfo
     from senbench.progress import GridProgress
     from senbench.results import remove_stray_temp_files
-    from senbench.runner import RunSummary, _run_processes
+    from senbench.runner import RunSummary, _prepare_encoders, _run_processes
 
     if objective not in OBJECTIVES:
         raise SuiteError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
@@ -300,8 +317,11 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
         directory = base / f"trial-{trial.number}" / "cells"
         directory.mkdir(parents=True, exist_ok=True)
         remove_stray_temp_files(directory)
-        progress = PruningProgress(trial, [c.id for c in cells], log)
         summary = RunSummary(total=len(cells))
+        cells = _prepare_encoders(cells, directory, info, GridProgress(None), summary)
+        if summary.failed:  # the trial's encoder could not be trained
+            raise RuntimeError(f"{summary.failed[0].error}")
+        progress = PruningProgress(trial, [c.id for c in cells], log)
         _run_processes(cells, directory, info, min(workers, len(cells)), progress,
                        summary)  # type: ignore[arg-type]
         if summary.failed:
@@ -313,10 +333,6 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
 
     already = len(study.get_trials(deepcopy=False, states=counted))
     if already < trials:
-        from senbench.runner import _prepare_encoders
-
-        _prepare_encoders([tgt.template], base, info, GridProgress(None),
-                          RunSummary(total=1))
         study.optimize(run_trial, n_trials=trials - already, catch=(RuntimeError,),
                        callbacks=[optuna.study.MaxTrialsCallback(trials, states=counted)])
     return study
@@ -326,7 +342,12 @@ def best_block(study: Any, tgt: Target) -> dict[str, Any]:
     """The method's suite entry with the best trial's hyperparameters: a ``methods:`` block
     a suite uses unchanged."""
     entry = tgt.suite.model.methods[tgt.method].model_dump(exclude_unset=True)
-    entry["hyperparams"] = {**tgt.fixed, **_plain(study.best_trial.params)}
+    best = _plain(study.best_trial.params)
+    entry["hyperparams"] = {**tgt.fixed,
+                            **{k: v for k, v in best.items() if not k.startswith(ENCODER)}}
+    tuned = {k[len(ENCODER):]: v for k, v in best.items() if k.startswith(ENCODER)}
+    if tuned:
+        entry["encoder"]["config"] = {**entry["encoder"].get("config", {}), **tuned}
     return {tgt.method: entry}
 
 

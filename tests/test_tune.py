@@ -148,4 +148,53 @@ def test_validation_checks_the_tune_block(write_suite):
         load_suite(write_suite(text), registries())
     message = str(info.value)
     assert "tune.sarsa-statee" in message and "sarsa-state" in message
-    assert "tune.sarsa-state.gamma" in message and "searches tilings, tiles" in message
+    assert "tune.sarsa-state.gamma" in message and "searches alpha, tiles, tilings, trace_decay" in message
+
+
+SEN = """\
+name: sen
+envs:
+  mountaincar: {}
+methods:
+  sen-sarsa:
+    agent: sarsa
+    observation: encoded
+    hyperparams: {tilings: 8, tiles: 6, trace_decay: 0.9}
+    encoder:
+      config: {widths: [8, 8, 16, 16], hidden: 32}
+      samples: 300
+      fraction: 1.0
+      epochs: 2
+      test_samples: 100
+    pixels: {height: 32, width: 32}
+seeds: 1
+budget: 600
+eval: {every: 300, episodes: 1}
+tune:
+  sen-sarsa:
+    alpha: {low: 0.5, high: 1.0}
+"""
+
+
+def test_an_encoder_setting_is_tuned_with_the_agent_and_exported_in_its_block(tmp_path):
+    (tmp_path / "s.yaml").write_text(SEN)
+    tgt = tuning.target(load_suite(tmp_path / "s.yaml", registries()), "sen-sarsa", None,
+                        registries())
+    assert set(tgt.space) == {"alpha", "encoder.batch_norm"}  # widths, hidden fixed
+    env = {**os.environ, "COLUMNS": "200"}
+    done = subprocess.run([sys.executable, "-m", "senbench", "tune", str(tmp_path / "s.yaml"),
+                           "--method", "sen-sarsa", "--seeds", "1", "--trials", "2",
+                           "--sampler", "random", "--seed", "3", "--results",
+                           str(tmp_path / "results"), "--export", str(tmp_path / "b.yaml")],
+                          capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr
+    study = optuna.load_study(study_name="sen-sarsa-mountaincar-auc",
+                              storage=f"sqlite:///{tmp_path / 'results' / 'sen' / 'tune.db'}")
+    norms = {t.params["encoder.batch_norm"] for t in study.trials}
+    encoders = [p for p in (tmp_path / "results" / "encoders").iterdir() if p.is_dir()]
+    assert len(encoders) == len(norms)  # one encoder per distinct setting
+    block = yaml.safe_load((tmp_path / "b.yaml").read_text())["sen-sarsa"]
+    assert block["encoder"]["config"]["batch_norm"] == study.best_trial.params[
+        "encoder.batch_norm"]
+    assert block["encoder"]["config"]["widths"] == [8, 8, 16, 16]
+    assert "encoder.batch_norm" not in block["hyperparams"]

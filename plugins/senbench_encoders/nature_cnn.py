@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from senbench import EncoderSpec
+from senbench import Choice, EncoderSpec
 
 
 @dataclass
@@ -43,4 +43,5 @@ NATURE_CNN = EncoderSpec(
     config=NatureCNNConfig,
     description="Nature-DQN CNN (3 convolutions, 1 hidden layer) regressing the state",
     traceable=True,
+    search_space={"hidden": Choice((128, 256, 512))},
 )

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from senbench import EncoderSpec
+from senbench import Choice, EncoderSpec
 
 
 @dataclass
@@ -83,4 +83,5 @@ SEN_RESNET = EncoderSpec(
     config=SenResNetConfig,
     description="SEN-DRL's encoder: 4 residual blocks of two 3x3 convolutions, 2 FC layers",
     traceable=True,
+    search_space={"hidden": Choice((64, 128, 256, 512)), "batch_norm": Choice((True, False))},
 )
