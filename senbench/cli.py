@@ -174,9 +174,11 @@ def tune(
     seed-mean evaluation curve, a resumable shared study, and the best block exported."""
     import yaml
 
+    from senbench.errors import SuiteError
     from senbench.plugins import registries
     from senbench.runner import usable_cores
     from senbench.tuning import (
+        OBJECTIVES,
         best_block,
         make_pruner,
         make_sampler,
@@ -185,14 +187,17 @@ def tune(
         target,
     )
 
+    if objective not in OBJECTIVES:
+        raise SuiteError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
     suite = _load(suite_file)
     regs = registries()
     tgt = target(suite, method, env, regs)
     name = study or f"{tgt.method}-{tgt.env}-{objective}"
-    done = run_study(
+    chosen_sampler, chosen_pruner = make_sampler(sampler, seed), make_pruner(pruner, tgt)
+    done = run_study(  # the storage is opened (a SQLite file created) only once all is checked
         tgt, trials=trials, seeds=seeds, objective=objective,
         storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
-        sampler=make_sampler(sampler, seed), pruner=make_pruner(pruner, tgt),
+        sampler=chosen_sampler, pruner=chosen_pruner,
         results_root=results, workers=workers or min(seeds, usable_cores()), regs=regs,
         log=lambda message: err.print(escape(message), highlight=False))
     _print_trials(done, name, objective)

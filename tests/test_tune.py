@@ -148,7 +148,8 @@ def test_validation_checks_the_tune_block(write_suite):
         load_suite(write_suite(text), registries())
     message = str(info.value)
     assert "tune.sarsa-statee" in message and "sarsa-state" in message
-    assert "tune.sarsa-state.gamma" in message and "searches alpha, tiles, tilings, trace_decay" in message
+    assert "tune.sarsa-state.gamma" in message
+    assert "searches alpha, tiles, tilings, trace_decay" in message
 
 
 SEN = """\
@@ -198,3 +199,11 @@ def test_an_encoder_setting_is_tuned_with_the_agent_and_exported_in_its_block(tm
         "encoder.batch_norm"]
     assert block["encoder"]["config"]["widths"] == [8, 8, 16, 16]
     assert "encoder.batch_norm" not in block["hyperparams"]
+
+
+def test_a_bad_option_is_refused_before_any_storage_is_made(tmp_path):
+    (tmp_path / "s.yaml").write_text(SUITE)
+    for bad in (["--objective", "median"], ["--sampler", "grid"], ["--pruner", "asha"]):
+        done = tune(tmp_path, "--trials", "1", *bad)
+        assert done.returncode == 2 and bad[1] in done.stderr
+    assert not (tmp_path / "results").exists()
