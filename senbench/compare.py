@@ -19,7 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from senbench.errors import ResultsError
-from senbench.report import METRICS, per_cell
+from senbench.report import METRICS, label, per_cell
 from senbench.results import read_results
 from senbench.stats import improvement_ci, iqm, probability_of_improvement, stratified_ci
 
@@ -32,10 +32,6 @@ class Side:
     """How the table names this side: a method label, or folder: label."""
     cells: pd.DataFrame
     """Finished cells of one method (per_cell rows)."""
-
-
-def label(method: str, variant: str) -> str:
-    return method + (f" [{variant}]" if variant else "")
 
 
 def _finished(results: pd.DataFrame, folder: Path) -> pd.DataFrame:

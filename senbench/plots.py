@@ -76,6 +76,8 @@ def learning_curves(results: pd.DataFrame) -> dict[str, dict[str, pd.DataFrame]]
     """env → method label → finished cells' evaluation returns (one row per cell, one
     column per frame), on the evaluation frames every one of those cells has. Labels name
     the suite when the results hold several."""
+    from senbench.report import label
+
     cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
     evals = results[results["kind"] == "eval"]
     evals = evals[evals["cell_id"].isin(cells["cell_id"])]
@@ -87,7 +89,7 @@ def learning_curves(results: pd.DataFrame) -> dict[str, dict[str, pd.DataFrame]]
             raise ResultsError(f"{suite}: cells of several versions of the suite share "
                                f"{method} and a seed; plot without --all")
         table = group.pivot(index="cell_id", columns="step", values="return")
-        name = (f"{suite}: " if several else "") + method + (f" [{variant}]" if variant else "")
+        name = (f"{suite}: " if several else "") + label(method, variant)
         curves.setdefault(env, {})[name] = table.dropna(axis=1)
     return curves
 

@@ -18,6 +18,11 @@ METRICS = {  # summary prefix → (per-cell column, higher is better)
 }
 
 
+def label(method: str, variant: str) -> str:
+    """A method as the report names it: ``sen-sarsa [encoder.fraction=0.2]``."""
+    return method + (f" [{variant}]" if variant else "")
+
+
 def per_cell(results: pd.DataFrame) -> pd.DataFrame:
     """``cell_metrics`` with ``steps_to_threshold`` of a seed that never reached the
     threshold set to the budget (censored: it needs at least that many frames), so that
@@ -100,7 +105,7 @@ def render(summary: pd.DataFrame, console: Console) -> None:
         table.add_column("AUC", justify="right")
         table.add_column("seeds ok / failed", justify="right")
         for row in rows.itertuples():
-            name = escape(row.method + (f" [{row.variant}]" if row.variant else ""))
+            name = escape(label(row.method, row.variant))
             if row.reached:
                 steps = f"{_cell(row, 'steps', 0)}\n({row.reached}/{row.seeds_ok} reached)"
             else:

@@ -81,6 +81,15 @@ class Choice:
 Param = Float | Int | Choice
 
 
+def _check_search_space(kind: str, name: str, config: type,
+                        space: Mapping[str, Param]) -> None:
+    fields = getattr(config, "__dataclass_fields__", {})
+    unknown = [field for field in space if field not in fields]
+    if unknown:
+        raise ValueError(f"{kind} '{name}': search_space names {unknown}, which are not "
+                         "fields of its config")
+
+
 @dataclass(frozen=True)
 class AgentDefaults:
     """Hyperparameters for one env, and where they come from (paper, zoo, our tuning)."""
@@ -110,11 +119,7 @@ class AgentSpec:
     parameter by setting it in the method's ``hyperparams``."""
 
     def __post_init__(self) -> None:
-        fields = getattr(self.config, "__dataclass_fields__", {})
-        unknown = [name for name in self.search_space if name not in fields]
-        if unknown:
-            raise ValueError(f"agent '{self.name}': search_space names {unknown}, which are not "
-                             "fields of its config")
+        _check_search_space("agent", self.name, self.config, self.search_space)
         for key in self.defaults:
             env, _, observation = key.partition(":")
             if not env or (observation and observation not in self.observations):
@@ -144,11 +149,7 @@ class EncoderSpec:
     (each distinct value trains its own encoder)."""
 
     def __post_init__(self) -> None:
-        fields = getattr(self.config, "__dataclass_fields__", {})
-        unknown = [name for name in self.search_space if name not in fields]
-        if unknown:
-            raise ValueError(f"encoder '{self.name}': search_space names {unknown}, which are "
-                             "not fields of its config")
+        _check_search_space("encoder", self.name, self.config, self.search_space)
 
 
 @dataclass(frozen=True)
