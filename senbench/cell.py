@@ -79,6 +79,16 @@ class CellOutcome:
 
 def run_cell(cell: Cell, directory: Path, info: RunInfo,
              progress: ProgressCallback | None = None) -> CellOutcome:
+    """Run a cell and write its result file."""
+    rows, outcome = execute_cell(cell, info, progress)
+    write_cell(directory, cell.id, rows)
+    return outcome
+
+
+def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = None
+                 ) -> tuple[list[dict[str, Any]], CellOutcome]:
+    """Run a cell: its result rows, and its outcome. Nothing is written here, so a cell can
+    run where the results are not (a Ray worker) and the caller writes them."""
     started = datetime.now(UTC)
     _reset_peak_rss()
     recorder: CellRecorder | None = None
@@ -122,9 +132,9 @@ def run_cell(cell: Cell, directory: Path, info: RunInfo,
     rows.append({"kind": "cell", "step": steps, "return": None, "return_std": None,
                  "length": None, "wall_s": wall})
     common = cell_metadata(cell, info, status, error, started, ended, wall)
-    write_cell(directory, cell.id, [{**common, **row} for row in rows])
     final = recorder.last_eval if recorder else None
-    return CellOutcome(cell.id, cell.label, status, error, final, wall)
+    return ([{**common, **row} for row in rows],
+            CellOutcome(cell.id, cell.label, status, error, final, wall))
 
 
 def cell_metadata(cell: Cell, info: RunInfo, status: str, error: str | None,
@@ -180,10 +190,17 @@ def _peak_rss_mb() -> float:
 def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, how: str) -> CellOutcome:
     """A cell that ended without recording itself (its process died, or writing its result
     failed): record it as failed, with no curve."""
+    rows, outcome = lost_cell(cell, info, how)
+    write_cell(directory, cell.id, rows)
+    return outcome
+
+
+def lost_cell(cell: Cell, info: RunInfo, how: str) -> tuple[list[dict[str, Any]], CellOutcome]:
+    """The rows and outcome of a cell that ended without a result of its own."""
     error = f"the process running this cell {how}"
     now = datetime.now(UTC)
     row = {"kind": "cell", "step": 0, "return": None, "return_std": None, "length": None,
            "wall_s": 0.0}
     meta = cell_metadata(cell, info, "failed", error, now, now, 0.0)
-    write_cell(directory, cell.id, [{**meta, **row, "peak_rss_mb": None}])
-    return CellOutcome(cell.id, cell.label, "failed", error, None, 0.0)
+    return ([{**meta, **row, "peak_rss_mb": None}],
+            CellOutcome(cell.id, cell.label, "failed", error, None, 0.0))

@@ -67,20 +67,37 @@ def validate(suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")
 @user_errors
 def run(
     suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")],
-    workers: Annotated[int, typer.Option("--workers", "-w", min=1,
-                                         help="Cells run in parallel processes.")] = 1,
+    workers: Annotated[int | None, typer.Option(
+        "--workers", "-w", min=1, help="Cells run in parallel processes (default 1). With "
+        "--executor ray and no --address: the local Ray instance's CPUs (default: all).")] = None,
     results: Annotated[Path, typer.Option(help="Results root; cells go to RESULTS/<suite>/.")]
     = Path("results"),
     force: Annotated[bool, typer.Option(help="Redo cells that already finished.")] = False,
+    executor: Annotated[str, typer.Option(
+        help="local: processes on this machine; ray: Ray tasks (pip install 'senbench[ray]')."
+    )] = "local",
+    address: Annotated[str | None, typer.Option(
+        help="With --executor ray: the cluster (auto, or ray://host:10001). Without it, a "
+             "local Ray instance with --workers CPUs is started for the run.")] = None,
+    retries: Annotated[int, typer.Option(
+        min=0, help="With --executor ray: how often a cell whose worker died is retried "
+                    "before it is recorded as failed.")] = 2,
 ) -> None:
     """Run every cell of a suite that has not finished yet (resumable)."""
     from senbench.progress import GridProgress
-    from senbench.runner import run_suite
+    from senbench.runner import EXECUTORS, run_suite, usable_cores
 
+    if executor not in EXECUTORS:
+        raise SenbenchError(f"--executor {executor!r}: use one of {', '.join(EXECUTORS)}")
+    if address is not None and executor != "ray":
+        raise SenbenchError("--address names a Ray cluster: add --executor ray")
     suite = _load(suite_file)
     signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
+    if workers is None:
+        workers = usable_cores() if executor == "ray" else 1
     summary = run_suite(suite, results, workers=workers, force=force,
-                        progress=GridProgress(err))
+                        progress=GridProgress(err), executor=executor, address=address,
+                        retries=retries)
     folder = results / suite.name
     out.print(
         f"suite '{suite.name}': {summary.ok} finished, {len(summary.failed)} failed, "

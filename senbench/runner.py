@@ -70,8 +70,23 @@ def pending_cells(suite: Suite, directory: Path, force: bool) -> list[Cell]:
     return [c for c in suite.cells if finished_status(cell_path(directory, c.id)) != "ok"]
 
 
+EXECUTORS = ("local", "ray")
+
+
 def run_suite(suite: Suite, results_root: str | Path, workers: int = 1, force: bool = False,
-              progress: GridProgress | None = None) -> RunSummary:
+              progress: GridProgress | None = None, executor: str = "local",
+              address: str | None = None, retries: int = 2) -> RunSummary:
+    """Run the cells of ``suite`` not yet finished under ``results_root``.
+
+    ``executor="local"``: serially, or ``workers`` processes. ``"ray"``: as Ray tasks, on the
+    cluster at ``address`` or on a local instance of ``workers`` CPUs started for the run; a
+    task whose worker dies is retried ``retries`` times (see :mod:`senbench.ray_runner`)."""
+    if executor not in EXECUTORS:
+        raise SenbenchError(f"unknown executor {executor!r}: use one of {', '.join(EXECUTORS)}")
+    if executor == "ray":
+        from senbench.ray_runner import import_ray
+
+        import_ray()  # before anything is written: a missing extra is a clear error
     directory = cells_dir(results_root, suite.name)
     try:
         directory.mkdir(parents=True, exist_ok=True)
@@ -84,14 +99,19 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int = 1, force: b
     summary = RunSummary(total=len(suite.cells), skipped=len(suite.cells) - len(todo))
     progress = progress or GridProgress(None)
     threads = max((c.config["threads"] for c in todo), default=1)
-    if workers * threads > usable_cores():
+    if executor == "local" and workers * threads > usable_cores():
         progress.warn(f"{workers} workers × {threads} torch threads per cell > "
                       f"{usable_cores()} cores: cells will compete for them")
     info = RunInfo.gather(Path(results_root) / "encoders")
     with progress.grid(len(suite.cells), summary.skipped):
         try:
             todo = _prepare_encoders(todo, directory, info, progress, summary)
-            if workers <= 1:
+            if executor == "ray":
+                from senbench.ray_runner import run_cells
+
+                run_cells(todo, directory, info, progress, summary, address=address,
+                          workers=workers, retries=retries)
+            elif workers <= 1:
                 _run_serial(todo, directory, info, progress, summary)
             else:
                 _run_processes(todo, directory, info, workers, progress, summary)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import signal
 from dataclasses import dataclass
+from pathlib import Path
 
 import senbench
 from senbench import AgentSpec
@@ -52,6 +54,26 @@ class ExitAgent(CrashAgent):
 
 
 @dataclass
+class DieOnceConfig:
+    after: int = 10**9
+    marker: str = ""
+    """A file. Absent: the agent creates it, then SIGKILLs its own process (a worker lost
+    mid-cell). Present: the agent learns."""
+
+
+class DieOnceAgent(CrashAgent):
+    def __init__(self, ctx):
+        super().__init__(ctx)
+        self.marker = Path(ctx.config.marker)
+
+    def learn(self, budget, recorder):
+        if not self.marker.exists():
+            self.marker.write_text(str(os.getpid()))
+            os.kill(os.getpid(), signal.SIGKILL)
+        super().learn(budget, recorder)
+
+
+@dataclass
 class SlowConfig:
     sleep_s: float = 0.01
     """Seconds per frame."""
@@ -89,3 +111,4 @@ def register_agents(register):
     register(AgentSpec("die", DieAgent, CrashConfig, kinds, frozenset({"state"})))
     register(AgentSpec("slow", SlowAgent, SlowConfig, kinds, frozenset({"state"})))
     register(AgentSpec("exit", ExitAgent, CrashConfig, kinds, frozenset({"state"})))
+    register(AgentSpec("die-once", DieOnceAgent, DieOnceConfig, kinds, frozenset({"state"})))

@@ -10,6 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 from curves import curves_of
 
+from senbench.errors import SenbenchError
 from senbench.plugins import registries
 from senbench.results import SCHEMA, finished_status, read_results
 from senbench.runner import run_suite
@@ -252,3 +253,12 @@ def test_a_temp_file_of_a_killed_writer_not_yet_reaped_is_removed(tmp_path):
         assert remove_stray_temp_files(tmp_path) == 1 and not stray.exists()
     finally:
         writer.wait()
+
+
+def test_without_ray_the_ray_executor_is_a_clear_error_and_nothing_is_written(
+        write_suite, tmp_path, monkeypatch):
+    suite = load_suite(write_suite(SARSA), registries())
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray now raises ImportError
+    with pytest.raises(SenbenchError, match=r"pip install 'senbench\[ray\]'"):
+        run_suite(suite, tmp_path / "results", executor="ray")
+    assert not (tmp_path / "results").exists()

@@ -1,0 +1,230 @@
+"""Running a suite's cells as Ray tasks: ``senbench run SUITE --executor ray``.
+
+Each cell is one task that declares the CPUs it uses (its torch threads), so Ray places it
+on a node with that many free. The task runs the cell where it lands and returns its rows;
+the driver writes them with the same atomic per-cell files as a local run, so workers need
+no shared disk, and resume is the local runner's (finished files are skipped before any
+task is submitted). Encoders are trained once by the driver and put in Ray's object store;
+a node writes the files into a cache of its own the first time a cell there needs them.
+A task whose worker dies (killed, out of memory, a node lost) is retried ``retries`` times by
+Ray, then the cell is recorded as failed with why. Ctrl-C cancels the tasks in flight.
+
+Ray is an optional extra (``pip install 'senbench[ray]'``); it is imported only here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from senbench import plugins
+from senbench.cell import CellOutcome, RunInfo, execute_cell, lost_cell, record_lost_cell
+from senbench.errors import SenbenchError
+from senbench.progress import GridProgress
+from senbench.results import remove_stray_temp_files, write_cell
+from senbench.suite import Cell
+
+ENCODER_FILES = ("model.pt", "spec.json")
+"""What a node needs of a trained encoder to load it (not its traces or training curve)."""
+
+LOCAL_OBJECT_STORE_BYTES = 256 * 1024**2
+"""A local instance's object store: encoders and cell results are small; Ray's default
+(30% of memory) would take gigabytes of /dev/shm for nothing."""
+
+
+def import_ray() -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise SenbenchError("--executor ray needs Ray: pip install 'senbench[ray]' (or "
+                            "pip install ray), or run without --executor ray") from None
+    return ray
+
+
+def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,
+              summary: Any, address: str | None = None, workers: int | None = None,
+              retries: int = 2) -> None:
+    """Run ``todo`` on Ray and record each cell's outcome in ``summary``.
+
+    ``address``: an existing cluster (``auto``, ``ray://host:port``); None starts a local
+    instance for this run, with ``workers`` CPUs (default: this machine's), and stops it."""
+    ray = import_ray()
+    started_here = False
+    if not ray.is_initialized():
+        if address is None:
+            from senbench.runner import usable_cores
+
+            # "local": always a new instance, never a cluster `ray start` left running here
+            ray.init(address="local", num_cpus=workers or usable_cores(),
+                     include_dashboard=False,
+                     object_store_memory=LOCAL_OBJECT_STORE_BYTES, log_to_driver=False,
+                     configure_logging=False)
+        else:
+            try:
+                ray.init(address=address, log_to_driver=False, configure_logging=False)
+            except ConnectionError as exc:
+                raise SenbenchError(f"cannot reach the Ray cluster at {address!r}: {exc}; "
+                                    "check --address (auto, or ray://host:10001)") from None
+        started_here = True
+    try:
+        _run(ray, todo, directory, info, progress, summary, retries)
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,
+         summary: Any, retries: int) -> None:
+    sink = ray.remote(num_cpus=0)(_ProgressSink).remote()
+    task = ray.remote(_ray_cell)
+    shipped: dict[str, Any] = {}
+    extra = plugins.registered_module_names()
+    pending: dict[Any, Cell] = {}
+    for cell in todo:
+        files = None
+        if cell.config.get("encoder"):
+            key = _encoder_key(cell)
+            if key not in shipped:
+                shipped[key] = ray.put(_encoder_files(info.encoder_cache, key))
+            files = shipped[key]
+        ref = task.options(num_cpus=cell.config["threads"], max_retries=retries,
+                           retry_exceptions=False, name=f"senbench-cell-{cell.id}",
+                           ).remote(cell, info, key_of(cell), files, extra, sink)
+        pending[ref] = cell
+    running: set[str] = set()
+    try:
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
+            _show(ray.get(sink.drain.remote()), todo, running, progress)
+            for ref in done:
+                cell = pending.pop(ref)
+                try:
+                    rows, outcome = ray.get(ref)
+                    write_cell(directory, cell.id, rows)
+                except ray.exceptions.RayError as exc:
+                    outcome = record_lost_cell(
+                        cell, directory, info,
+                        f"died on Ray {retries + 1} times ({type(exc).__name__}); "
+                        f"last: {_first_line(exc)}")
+                if cell.id not in running:
+                    progress.started(cell.id, cell.label, cell.config["budget"])
+                running.discard(cell.id)
+                summary.outcomes.append(outcome)
+                progress.finished(outcome)
+    except BaseException:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        remove_stray_temp_files(directory)
+        raise
+
+
+def _show(events: list[tuple], todo: list[Cell], running: set[str],
+          progress: GridProgress) -> None:
+    cells = {c.id: c for c in todo}
+    for event, cell_id, *args in events:
+        if cell_id not in running:  # a retried cell starts again: show it once
+            cell = cells[cell_id]
+            progress.started(cell_id, cell.label, cell.config["budget"])
+            running.add(cell_id)
+        if event == "update":
+            progress.update(cell_id, *args)
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = [line for line in str(exc).splitlines() if line.strip()]
+    return lines[0][:200] if lines else repr(exc)
+
+
+# --- encoders ------------------------------------------------------------------------------
+
+
+def key_of(cell: Cell) -> str | None:
+    return _encoder_key(cell) if cell.config.get("encoder") else None
+
+
+def _encoder_key(cell: Cell) -> str:
+    """The encoder's cache folder name (its completed request's id)."""
+    from senbench.encoders import complete, encoder_request
+
+    return complete(encoder_request(cell.config), plugins.registries()).id
+
+
+def _encoder_files(cache: Path, key: str) -> dict[str, bytes]:
+    folder = Path(cache) / key
+    try:
+        return {name: (folder / name).read_bytes() for name in ENCODER_FILES}
+    except OSError as exc:
+        raise SenbenchError(f"encoder {key} is not in {cache}: {exc}") from None
+
+
+def node_cache() -> Path:
+    """Where a node keeps the encoders it was sent, shared by its workers."""
+    return Path(tempfile.gettempdir()) / f"senbench-ray-{os.getuid()}" / "encoders"
+
+
+def _materialize(key: str, files: dict[str, bytes]) -> Path:
+    """Write a shipped encoder into this node's cache once: into a temp folder, renamed into
+    place, so a worker never loads half an encoder."""
+    root = node_cache()
+    target = root / key
+    if not (target / "model.pt").exists():
+        root.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=root))
+        for name, data in files.items():
+            (tmp / name).write_bytes(data)
+        try:
+            os.rename(tmp, target)
+        except OSError:  # another worker got there first
+            for name in files:
+                (tmp / name).unlink(missing_ok=True)
+            tmp.rmdir()
+    return root
+
+
+# --- in a Ray worker -----------------------------------------------------------------------
+
+
+class _ProgressSink:
+    """An actor that cells report to; the driver drains it twice a second."""
+
+    def __init__(self) -> None:
+        self.events: list[tuple] = []
+
+    def tell(self, event: tuple) -> None:
+        self.events.append(event)
+
+    def drain(self) -> list[tuple]:
+        events, self.events = self.events, []
+        return events
+
+
+def _ray_cell(cell: Cell, info: RunInfo, key: str | None, files: dict[str, bytes] | None,
+              extra: list[tuple[str, str, str]], sink: Any
+              ) -> tuple[list[dict[str, Any]], CellOutcome]:
+    from senbench.runner import set_threads
+
+    set_threads(cell.config["threads"])
+    plugins.register_modules(extra)
+    here = dataclasses.replace(info, host=platform.node(),
+                               encoder_cache=_materialize(key, files) if key else
+                               info.encoder_cache)
+    sink.tell.remote(("started", cell.id))
+    last = 0.0
+
+    def report(cell_id: str, steps: int, rate: float, last_eval: float | None,
+               eval_step: int | None) -> None:
+        nonlocal last
+        now = time.monotonic()
+        if eval_step is not None or now - last >= 1.0:  # evaluations always; else 1/s
+            last = now
+            sink.tell.remote(("update", cell_id, steps, rate, last_eval, eval_step))
+
+    try:
+        return execute_cell(cell, here, report)
+    except Exception as exc:  # outside the agent (e.g. its encoder would not load): no retry
+        return lost_cell(cell, here, f"crashed: {exc!r}")

@@ -1,0 +1,162 @@
+"""``senbench run --executor ray``: cells as Ray tasks on a local instance of 2 CPUs."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from senbench.plugins import registries
+from senbench.results import read_results
+from senbench.runner import run_suite
+from senbench.suite import load_suite
+
+ray = pytest.importorskip("ray", reason="Ray is not installed: pip install 'senbench[ray]'")
+
+TESTS = Path(__file__).parent
+
+# SARSA on the state and on a tiny encoder's estimate (the encoder is trained once by the
+# driver and shipped to the workers), 2 seeds each.
+TINY = """\
+name: tiny
+envs:
+  mountaincar: {}
+methods:
+  sarsa-state:
+    agent: sarsa
+  sen-sarsa:
+    agent: sarsa
+    observation: encoded
+    hyperparams: {tilings: 8, tiles: 6, trace_decay: 0.9}
+    encoder:
+      config: {widths: [8, 8, 16, 16], hidden: 32}
+      samples: 300
+      fraction: 1.0
+      epochs: 2
+      test_samples: 100
+    pixels: {height: 32, width: 32}
+seeds: 2
+budget: 2000
+eval: {every: 500, episodes: 2}
+"""
+
+
+def curves(folder: Path) -> pd.DataFrame:
+    rows = read_results(folder)
+    rows = rows[rows["kind"] != "cell"]
+    return rows.sort_values(["cell_id", "kind", "step"])[
+        ["cell_id", "method", "seed", "kind", "step", "return", "length"]].reset_index(drop=True)
+
+
+# First, before the module's shared instance exists: the CLI starts a local instance of its
+# own for the run and stops it.
+def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path):
+    (tmp_path / "tiny.yaml").write_text(TINY)
+    suite = load_suite(tmp_path / "tiny.yaml", registries())
+    serial = run_suite(suite, tmp_path / "serial")
+    assert serial.ok == 4
+
+    command = [sys.executable, "-m", "senbench", "run", str(tmp_path / "tiny.yaml"),
+               "--executor", "ray", "--workers", "2", "--results", str(tmp_path / "ray")]
+    done = subprocess.run(command, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "4 finished, 0 failed" in done.stdout
+    # the same seeds give the same curves, evaluation by evaluation, episode by episode
+    pd.testing.assert_frame_equal(curves(tmp_path / "serial" / "tiny"),
+                                  curves(tmp_path / "ray" / "tiny"))
+    assert set(read_results(tmp_path / "ray" / "tiny")["status"]) == {"ok"}
+    assert not ray.is_initialized()  # this process never joined it
+
+    # resume: a lost cell is the only one run again
+    cells = sorted((tmp_path / "ray" / "tiny" / "cells").glob("*.parquet"))
+    cells[0].unlink()
+    again = subprocess.run(command, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    assert "1 finished, 0 failed, 3 already done" in again.stdout
+    pd.testing.assert_frame_equal(curves(tmp_path / "serial" / "tiny"),
+                                  curves(tmp_path / "ray" / "tiny"))
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """One local instance for the tests below; its workers import tests/plugin_for_tests.py."""
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False,
+             object_store_memory=128 * 1024**2,
+             runtime_env={"env_vars": {"PYTHONPATH": str(TESTS)}})
+    yield
+    ray.shutdown()
+
+
+DIE_ONCE = """\
+name: dies
+envs:
+  mountaincar: {{}}
+methods:
+  die-state: {{agent: die-once, hyperparams: {{marker: "{marker}"}}}}
+  sarsa-state: {{agent: sarsa}}
+seeds: 1
+budget: 600
+eval: {{every: 300, episodes: 1}}
+"""
+
+
+def test_a_cell_whose_worker_is_killed_is_retried(local_ray, test_agents, tmp_path):
+    marker = tmp_path / "killed-once"
+    (tmp_path / "s.yaml").write_text(DIE_ONCE.format(marker=marker))
+    suite = load_suite(tmp_path / "s.yaml", registries())
+    summary = run_suite(suite, tmp_path / "results", executor="ray", retries=1)
+    assert marker.exists()  # the first attempt killed its worker...
+    assert summary.ok == 2 and not summary.failed  # ...and the retry finished the cell
+    rows = read_results(tmp_path / "results" / "dies")
+    assert set(rows["status"]) == {"ok"}
+    assert rows[rows["kind"] == "eval"].groupby("method")["step"].max().to_dict() == {
+        "die-state": 600, "sarsa-state": 600}
+
+
+def test_a_cell_that_dies_every_time_is_recorded_failed_after_its_retries(
+        local_ray, test_agents, tmp_path):
+    (tmp_path / "s.yaml").write_text(TINY_DIE)
+    suite = load_suite(tmp_path / "s.yaml", registries())
+    summary = run_suite(suite, tmp_path / "results", executor="ray", retries=1)
+    assert summary.ok == 1
+    (failed,) = summary.failed
+    assert failed.label.startswith("mountaincar/die-state")
+    assert "died on Ray 2 times" in failed.error
+    rows = read_results(tmp_path / "results" / "dies")
+    lost = rows[rows["method"] == "die-state"]
+    assert list(lost["status"]) == ["failed"] and list(lost["kind"]) == ["cell"]  # no curve
+    # the failed cell is tried again on the next run; the finished one is not
+    again = run_suite(suite, tmp_path / "results", executor="ray", retries=0)
+    assert again.skipped == 1 and len(again.failed) == 1
+
+
+TINY_DIE = """\
+name: dies
+envs:
+  mountaincar: {}
+methods:
+  die-state: {agent: die}
+  sarsa-state: {agent: sarsa}
+seeds: 1
+budget: 600
+eval: {every: 300, episodes: 1}
+"""
+
+
+def test_an_agent_error_is_a_failed_cell_not_a_retry(local_ray, test_agents, tmp_path):
+    (tmp_path / "s.yaml").write_text(TINY_DIE.replace("{agent: die}", "{agent: crash}"))
+    suite = load_suite(tmp_path / "s.yaml", registries())
+    summary = run_suite(suite, tmp_path / "results", executor="ray", retries=3)
+    (failed,) = summary.failed
+    assert "crashed on purpose at frame 10" in failed.error
+
+
+def test_address_without_the_ray_executor_is_refused(tmp_path):
+    (tmp_path / "s.yaml").write_text(TINY)
+    done = subprocess.run([sys.executable, "-m", "senbench", "run", str(tmp_path / "s.yaml"),
+                           "--address", "auto", "--results", str(tmp_path / "r")],
+                          capture_output=True, text=True)
+    assert done.returncode == 2
+    assert "--executor ray" in done.stderr
+    assert not (tmp_path / "r").exists()
