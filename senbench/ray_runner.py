@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import platform
+import signal
 import tempfile
 import time
 from pathlib import Path
@@ -55,6 +56,7 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
     instance for this run, with ``workers`` CPUs (default: this machine's), and stops it."""
     ray = import_ray()
     started_here = False
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     if not ray.is_initialized():
         if address is None:
             from senbench.runner import usable_cores
@@ -71,6 +73,9 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
                 raise SenbenchError(f"cannot reach the Ray cluster at {address!r}: {exc}; "
                                     "check --address (auto, or ray://host:10001)") from None
         started_here = True
+    for sig, handler in handlers.items():  # Ray's own handlers would kill the driver outright
+        if handler is not None:
+            signal.signal(sig, handler)
     try:
         _run(ray, todo, directory, info, progress, summary, retries)
     finally:
@@ -86,27 +91,28 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: G
     extra = plugins.registered_module_names()
     pending: dict[Any, Cell] = {}
     for cell in todo:
-        files = None
-        if cell.config.get("encoder"):
-            key = _encoder_key(cell)
-            if key not in shipped:
-                shipped[key] = ray.put(_encoder_files(info.encoder_cache, key))
-            files = shipped[key]
+        key = _encoder_key(cell) if cell.config.get("encoder") else None
+        if key is not None and key not in shipped:
+            shipped[key] = ray.put(_encoder_files(info.encoder_cache, key))
         ref = task.options(num_cpus=cell.config["threads"], max_retries=retries,
                            retry_exceptions=False, name=f"senbench-cell-{cell.id}",
-                           ).remote(cell, info, key_of(cell), files, extra, sink)
+                           ).remote(cell, info, key, shipped.get(key), extra, sink)
         pending[ref] = cell
+    cells = {c.id: c for c in todo}
     running: set[str] = set()
     try:
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
-            _show(ray.get(sink.drain.remote()), todo, running, progress)
+            _show(ray.get(sink.drain.remote()), cells, running, progress)
             for ref in done:
                 cell = pending.pop(ref)
                 try:
                     rows, outcome = ray.get(ref)
                     write_cell(directory, cell.id, rows)
-                except ray.exceptions.RayError as exc:
+                except ray.exceptions.RayTaskError as exc:  # raised before the cell ran
+                    outcome = record_lost_cell(cell, directory, info,
+                                               f"raised on Ray: {_first_line(exc)}")
+                except ray.exceptions.RayError as exc:  # its worker, or node, was lost
                     outcome = record_lost_cell(
                         cell, directory, info,
                         f"died on Ray {retries + 1} times ({type(exc).__name__}); "
@@ -123,9 +129,8 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: G
         raise
 
 
-def _show(events: list[tuple], todo: list[Cell], running: set[str],
+def _show(events: list[tuple], cells: dict[str, Cell], running: set[str],
           progress: GridProgress) -> None:
-    cells = {c.id: c for c in todo}
     for event, cell_id, *args in events:
         if cell_id not in running:  # a retried cell starts again: show it once
             cell = cells[cell_id]
@@ -141,10 +146,6 @@ def _first_line(exc: BaseException) -> str:
 
 
 # --- encoders ------------------------------------------------------------------------------
-
-
-def key_of(cell: Cell) -> str | None:
-    return _encoder_key(cell) if cell.config.get("encoder") else None
 
 
 def _encoder_key(cell: Cell) -> str:
@@ -163,7 +164,11 @@ def _encoder_files(cache: Path, key: str) -> dict[str, bytes]:
 
 
 def node_cache() -> Path:
-    """Where a node keeps the encoders it was sent, shared by its workers."""
+    """Where a node keeps the encoders it was sent, shared by its workers:
+    ``$SENBENCH_RAY_NODE_CACHE``, or a folder under the node's temp dir."""
+    chosen = os.environ.get("SENBENCH_RAY_NODE_CACHE")
+    if chosen:
+        return Path(chosen)
     return Path(tempfile.gettempdir()) / f"senbench-ray-{os.getuid()}" / "encoders"
 
 

@@ -1,14 +1,17 @@
 """``senbench run --executor ray``: cells as Ray tasks on a local instance of 2 CPUs."""
 
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from senbench.plugins import registries
-from senbench.results import read_results
+from senbench.results import finished_status, read_results
 from senbench.runner import run_suite
 from senbench.suite import load_suite
 
@@ -49,8 +52,8 @@ def curves(folder: Path) -> pd.DataFrame:
         ["cell_id", "method", "seed", "kind", "step", "return", "length"]].reset_index(drop=True)
 
 
-# First, before the module's shared instance exists: the CLI starts a local instance of its
-# own for the run and stops it.
+# The CLI tests come first, before the module's shared instance exists: the CLI starts a
+# local instance of its own for the run and stops it.
 def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path):
     (tmp_path / "tiny.yaml").write_text(TINY)
     suite = load_suite(tmp_path / "tiny.yaml", registries())
@@ -59,7 +62,8 @@ def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path
 
     command = [sys.executable, "-m", "senbench", "run", str(tmp_path / "tiny.yaml"),
                "--executor", "ray", "--workers", "2", "--results", str(tmp_path / "ray")]
-    done = subprocess.run(command, capture_output=True, text=True)
+    env = {**os.environ, "SENBENCH_RAY_NODE_CACHE": str(tmp_path / "node")}
+    done = subprocess.run(command, capture_output=True, text=True, env=env)
     assert done.returncode == 0, done.stderr
     assert "4 finished, 0 failed" in done.stdout
     # the same seeds give the same curves, evaluation by evaluation, episode by episode
@@ -67,15 +71,60 @@ def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path
                                   curves(tmp_path / "ray" / "tiny"))
     assert set(read_results(tmp_path / "ray" / "tiny")["status"]) == {"ok"}
     assert not ray.is_initialized()  # this process never joined it
+    # the encoder was trained once, by the driver, and the workers were sent its weights:
+    # they loaded them, and trained nothing (training would leave its curves and traces)
+    (trained,) = [p for p in (tmp_path / "ray" / "encoders").iterdir() if p.is_dir()]
+    (sent,) = [p for p in (tmp_path / "node").iterdir() if p.is_dir()]
+    assert sent.name == trained.name
+    assert sorted(p.name for p in sent.iterdir()) == ["model.pt", "spec.json"]
 
     # resume: a lost cell is the only one run again
     cells = sorted((tmp_path / "ray" / "tiny" / "cells").glob("*.parquet"))
     cells[0].unlink()
-    again = subprocess.run(command, capture_output=True, text=True)
+    again = subprocess.run(command, capture_output=True, text=True, env=env)
     assert again.returncode == 0, again.stderr
     assert "1 finished, 0 failed, 3 already done" in again.stdout
     pd.testing.assert_frame_equal(curves(tmp_path / "serial" / "tiny"),
                                   curves(tmp_path / "ray" / "tiny"))
+
+
+SLOW = """\
+name: slow
+envs:
+  mountaincar: {}
+methods:
+  slow-state: {agent: slow, hyperparams: {sleep_s: 0.004}}
+seeds: 6
+budget: 600
+eval: {every: 300, episodes: 1}
+"""
+
+
+@pytest.mark.parametrize("stop", ["ctrl-c", "sigterm"])
+def test_stopping_a_ray_run_cancels_its_tasks_leaving_only_finished_cells(tmp_path, cli_env,
+                                                                          stop):
+    (tmp_path / "slow.yaml").write_text(SLOW)
+    cells = tmp_path / "results" / "slow" / "cells"
+    command = [sys.executable, "-m", "senbench", "run", str(tmp_path / "slow.yaml"),
+               "--executor", "ray", "--workers", "2", "--results", str(tmp_path / "results")]
+    process = subprocess.Popen(command, env=cli_env, start_new_session=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.time() + 120
+    while not list(cells.glob("*.parquet")):
+        assert process.poll() is None and time.time() < deadline, process.communicate()
+        time.sleep(0.05)
+    if stop == "ctrl-c":
+        os.killpg(process.pid, signal.SIGINT)  # what Ctrl-C sends to the foreground group
+    else:
+        process.terminate()  # what a batch scheduler sends, to the runner only
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stdout + stderr
+    assert "run the same command again to resume" in stderr, stderr
+    files = list(cells.glob("*.parquet"))
+    assert 1 <= len(files) < 6
+    assert all(finished_status(f) == "ok" for f in files)
+    assert not list(cells.glob(".*.tmp"))
 
 
 @pytest.fixture(scope="module")
@@ -160,3 +209,4 @@ def test_address_without_the_ray_executor_is_refused(tmp_path):
     assert done.returncode == 2
     assert "--executor ray" in done.stderr
     assert not (tmp_path / "r").exists()
+
