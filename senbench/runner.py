@@ -262,13 +262,24 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
 
 @contextmanager
 def _signals_held():
-    """Hold SIGINT and SIGTERM until the block ends; they are then delivered as usual."""
-    held = {signal.SIGINT, signal.SIGTERM}
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    """Defer SIGINT and SIGTERM until the block ends; they are then delivered as usual.
+
+    Deferred in Python, not masked: masking blocks them in this thread only, and the kernel
+    then hands them to another thread (rich's refresh thread), whose flag Python still turns
+    into a KeyboardInterrupt here, mid-block."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # only the main thread handles signals
+        return
+    received: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: received.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        for sig in received:
+            signal.raise_signal(sig)
 
 
 def _drain(pipes: dict[str, Any], progress: GridProgress, outcomes: dict[str, CellOutcome],
