@@ -182,7 +182,8 @@ def tune(
     pruner: Annotated[str, typer.Option(help="median, hyperband or none.")] = "median",
     seed: Annotated[int | None, typer.Option(help="The sampler's seed.")] = None,
     workers: Annotated[int, typer.Option(min=0, help="Processes per trial (0: one per "
-                                         "seed, at most the cores).")] = 0,
+                                         "seed, all at once, so that the pruner sees every "
+                                         "seed at each evaluation early).")] = 0,
     export: Annotated[Path | None, typer.Option(
         help="Write the best trial as a suite 'methods:' block (YAML) to this file.")] = None,
     results: Annotated[Path, typer.Option(help="Results root.")] = Path("results"),
@@ -193,7 +194,6 @@ def tune(
 
     from senbench.errors import SuiteError
     from senbench.plugins import registries
-    from senbench.runner import usable_cores
     from senbench.tuning import (
         OBJECTIVES,
         best_block,
@@ -215,7 +215,7 @@ def tune(
         tgt, trials=trials, seeds=seeds, objective=objective,
         storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
         sampler=chosen_sampler, pruner=chosen_pruner,
-        results_root=results, workers=workers or min(seeds, usable_cores()), regs=regs,
+        results_root=results, workers=workers or seeds, regs=regs,
         log=lambda message: err.print(escape(message), highlight=False))
     _print_trials(done, name, objective)
     if export is not None:

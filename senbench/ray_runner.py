@@ -100,26 +100,18 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: G
         pending[ref] = cell
     cells = {c.id: c for c in todo}
     running: set[str] = set()
+    ended: set[str] = set()  # a cell's last reports may reach the sink after its result
     try:
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
-            _show(ray.get(sink.drain.remote()), cells, running, progress)
+            _show(ray.get(sink.drain.remote()), cells, running, ended, progress)
             for ref in done:
                 cell = pending.pop(ref)
-                try:
-                    rows, outcome = ray.get(ref)
-                    write_cell(directory, cell.id, rows)
-                except ray.exceptions.RayTaskError as exc:  # raised before the cell ran
-                    outcome = record_lost_cell(cell, directory, info,
-                                               f"raised on Ray: {_first_line(exc)}")
-                except ray.exceptions.RayError as exc:  # its worker, or node, was lost
-                    outcome = record_lost_cell(
-                        cell, directory, info,
-                        f"died on Ray {retries + 1} times ({type(exc).__name__}); "
-                        f"last: {_first_line(exc)}")
+                outcome = _collect(ray, ref, cell, directory, info, retries)
                 if cell.id not in running:
                     progress.started(cell.id, cell.label, cell.config["budget"])
                 running.discard(cell.id)
+                ended.add(cell.id)
                 summary.outcomes.append(outcome)
                 progress.finished(outcome)
     except BaseException:
@@ -129,9 +121,29 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: G
         raise
 
 
-def _show(events: list[tuple], cells: dict[str, Cell], running: set[str],
+def _collect(ray: Any, ref: Any, cell: Cell, directory: Path, info: RunInfo,
+             retries: int) -> CellOutcome:
+    """Write a finished task's cell, or record why it has none."""
+    try:
+        rows, outcome = ray.get(ref)
+    except ray.exceptions.RayTaskError as exc:  # raised before the cell ran
+        return record_lost_cell(cell, directory, info, f"raised on Ray: {_first_line(exc)}")
+    except ray.exceptions.RayError as exc:  # its worker, or its node, was lost each time
+        return record_lost_cell(cell, directory, info,
+                                f"died on Ray {retries + 1} times ({type(exc).__name__}); "
+                                f"last: {_first_line(exc)}")
+    try:
+        write_cell(directory, cell.id, rows)
+    except Exception as exc:  # as a local cell that cannot write its result
+        return record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
+    return outcome
+
+
+def _show(events: list[tuple], cells: dict[str, Cell], running: set[str], ended: set[str],
           progress: GridProgress) -> None:
     for event, cell_id, *args in events:
+        if cell_id in ended:
+            continue
         if cell_id not in running:  # a retried cell starts again: show it once
             cell = cells[cell_id]
             progress.started(cell_id, cell.label, cell.config["budget"])
