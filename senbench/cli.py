@@ -85,7 +85,7 @@ def run(
 ) -> None:
     """Run every cell of a suite that has not finished yet (resumable)."""
     from senbench.progress import GridProgress
-    from senbench.runner import EXECUTORS, run_suite, usable_cores
+    from senbench.runner import EXECUTORS, run_suite
 
     if executor not in EXECUTORS:
         raise SenbenchError(f"--executor {executor!r}: use one of {', '.join(EXECUTORS)}")
@@ -93,8 +93,6 @@ def run(
         raise SenbenchError("--address names a Ray cluster: add --executor ray")
     suite = _load(suite_file)
     signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
-    if workers is None:
-        workers = usable_cores() if executor == "ray" else 1
     summary = run_suite(suite, results, workers=workers, force=force,
                         progress=GridProgress(err), executor=executor, address=address,
                         retries=retries)
@@ -194,6 +192,7 @@ def tune(
 
     from senbench.errors import SuiteError
     from senbench.plugins import registries
+    from senbench.runner import usable_cores
     from senbench.tuning import (
         OBJECTIVES,
         best_block,
@@ -211,11 +210,15 @@ def tune(
     tgt = target(suite, method, env, regs)
     name = study or f"{tgt.method}-{tgt.env}-{objective}"
     chosen_sampler, chosen_pruner = make_sampler(sampler, seed), make_pruner(pruner, tgt)
+    processes = min(workers or seeds, seeds)
+    if processes > usable_cores():
+        err.print(f"[yellow]warning:[/] each trial runs {processes} seeds at once on "
+                  f"{usable_cores()} cores (--workers caps them)")
     done = run_study(  # the storage is opened (a SQLite file created) only once all is checked
         tgt, trials=trials, seeds=seeds, objective=objective,
         storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
         sampler=chosen_sampler, pruner=chosen_pruner,
-        results_root=results, workers=workers or seeds, regs=regs,
+        results_root=results, workers=processes, regs=regs,
         log=lambda message: err.print(escape(message), highlight=False))
     _print_trials(done, name, objective)
     if export is not None:

@@ -17,7 +17,6 @@ from __future__ import annotations
 import dataclasses
 import os
 import platform
-import signal
 import tempfile
 import time
 from pathlib import Path
@@ -54,29 +53,34 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
 
     ``address``: an existing cluster (``auto``, ``ray://host:port``); None starts a local
     instance for this run, with ``workers`` CPUs (default: this machine's), and stops it."""
-    ray = import_ray()
-    started_here = False
-    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-    if not ray.is_initialized():
-        if address is None:
-            from senbench.runner import usable_cores
+    from senbench.runner import _signals_held, usable_cores
 
-            # "local": always a new instance, never a cluster `ray start` left running here
-            ray.init(address="local", num_cpus=workers or usable_cores(),
-                     include_dashboard=False,
-                     object_store_memory=LOCAL_OBJECT_STORE_BYTES, log_to_driver=False,
-                     configure_logging=False)
-        else:
-            try:
-                ray.init(address=address, log_to_driver=False, configure_logging=False)
-            except ConnectionError as exc:
-                raise SenbenchError(f"cannot reach the Ray cluster at {address!r}: {exc}; "
-                                    "check --address (auto, or ray://host:10001)") from None
-        started_here = True
-    for sig, handler in handlers.items():  # Ray's own handlers would kill the driver outright
-        if handler is not None:
-            signal.signal(sig, handler)
+    ray = import_ray()
+    needs = max((c.config["threads"] for c in todo), default=1)
+    started_here = False
+    if not ray.is_initialized():
+        # Held: a Ctrl-C while Ray starts is handled once it has; and on leaving, our
+        # handlers replace those ray.init installs, which would exit the driver outright.
+        with _signals_held():
+            if address is None:
+                # "local": always a new instance, never a cluster `ray start` left running
+                ray.init(address="local", num_cpus=max(workers or usable_cores(), needs),
+                         include_dashboard=False, object_store_memory=LOCAL_OBJECT_STORE_BYTES,
+                         log_to_driver=False, configure_logging=False)
+            else:
+                try:
+                    ray.init(address=address, log_to_driver=False, configure_logging=False)
+                except ConnectionError as exc:
+                    raise SenbenchError(f"cannot reach the Ray cluster at {address!r}: {exc}; "
+                                        "check --address (auto, or ray://host:10001)") from None
+            started_here = True
     try:
+        largest = max((node["Resources"].get("CPU", 0) for node in ray.nodes()
+                       if node.get("Alive")), default=0)
+        if needs > largest:  # Ray would leave such a task pending for ever
+            raise SenbenchError(f"cells of this suite need {needs} CPUs (their threads) but the "
+                                f"largest Ray node has {largest:g}: lower the suite's threads, "
+                                "or add a larger node")
         _run(ray, todo, directory, info, progress, summary, retries)
     finally:
         if started_here:
@@ -85,26 +89,26 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
 
 def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,
          summary: Any, retries: int) -> None:
-    sink = ray.remote(num_cpus=0)(_ProgressSink).remote()
+    sink = ray.remote(num_cpus=0, max_restarts=-1)(_ProgressSink).remote()
     task = ray.remote(_ray_cell)
     shipped: dict[str, Any] = {}
     extra = plugins.registered_module_names()
     pending: dict[Any, Cell] = {}
-    for cell in todo:
-        key = _encoder_key(cell) if cell.config.get("encoder") else None
-        if key is not None and key not in shipped:
-            shipped[key] = ray.put(_encoder_files(info.encoder_cache, key))
-        ref = task.options(num_cpus=cell.config["threads"], max_retries=retries,
-                           retry_exceptions=False, name=f"senbench-cell-{cell.id}",
-                           ).remote(cell, info, key, shipped.get(key), extra, sink)
-        pending[ref] = cell
     cells = {c.id: c for c in todo}
     running: set[str] = set()
     ended: set[str] = set()  # a cell's last reports may reach the sink after its result
     try:
+        for cell in todo:
+            key = _encoder_key(cell) if cell.config.get("encoder") else None
+            if key is not None and key not in shipped:
+                shipped[key] = ray.put(_encoder_files(info.encoder_cache, key))
+            ref = task.options(num_cpus=cell.config["threads"], max_retries=retries,
+                               retry_exceptions=False, name=f"senbench-cell-{cell.id}",
+                               ).remote(cell, info, key, shipped.get(key), extra, sink)
+            pending[ref] = cell
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
-            _show(ray.get(sink.drain.remote()), cells, running, ended, progress)
+            _show(_drain(ray, sink), cells, running, ended, progress)
             for ref in done:
                 cell = pending.pop(ref)
                 outcome = _collect(ray, ref, cell, directory, info, retries)
@@ -121,17 +125,26 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: G
         raise
 
 
+def _drain(ray: Any, sink: Any) -> list[tuple]:
+    """The progress reports so far; none while the sink's actor restarts (progress only)."""
+    try:
+        return ray.get(sink.drain.remote())
+    except ray.exceptions.RayActorError:
+        return []
+
+
 def _collect(ray: Any, ref: Any, cell: Cell, directory: Path, info: RunInfo,
              retries: int) -> CellOutcome:
     """Write a finished task's cell, or record why it has none."""
     try:
         rows, outcome = ray.get(ref)
     except ray.exceptions.RayTaskError as exc:  # raised before the cell ran
-        return record_lost_cell(cell, directory, info, f"raised on Ray: {_first_line(exc)}")
-    except ray.exceptions.RayError as exc:  # its worker, or its node, was lost each time
+        cause = exc.cause if exc.cause is not None else exc
+        return record_lost_cell(cell, directory, info, f"raised on Ray: {cause!r}")
+    except ray.exceptions.RayError as exc:  # its worker or node lost, each try; or cancelled
         return record_lost_cell(cell, directory, info,
-                                f"died on Ray {retries + 1} times ({type(exc).__name__}); "
-                                f"last: {_first_line(exc)}")
+                                f"was lost on Ray ({type(exc).__name__}; retried up to "
+                                f"{retries} times): {_first_line(exc)}")
     try:
         write_cell(directory, cell.id, rows)
     except Exception as exc:  # as a local cell that cannot write its result

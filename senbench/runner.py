@@ -73,14 +73,16 @@ def pending_cells(suite: Suite, directory: Path, force: bool) -> list[Cell]:
 EXECUTORS = ("local", "ray")
 
 
-def run_suite(suite: Suite, results_root: str | Path, workers: int = 1, force: bool = False,
+def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None,
+              force: bool = False,
               progress: GridProgress | None = None, executor: str = "local",
               address: str | None = None, retries: int = 2) -> RunSummary:
     """Run the cells of ``suite`` not yet finished under ``results_root``.
 
     ``executor="local"``: serially, or ``workers`` processes. ``"ray"``: as Ray tasks, on the
-    cluster at ``address`` or on a local instance of ``workers`` CPUs started for the run; a
-    task whose worker dies is retried ``retries`` times (see :mod:`senbench.ray_runner`)."""
+    cluster at ``address`` or on a local instance of ``workers`` CPUs (default: all usable)
+    started for the run; a task whose worker dies is retried ``retries`` times (see
+    :mod:`senbench.ray_runner`)."""
     if executor not in EXECUTORS:
         raise SenbenchError(f"unknown executor {executor!r}: use one of {', '.join(EXECUTORS)}")
     if executor == "ray":
@@ -99,6 +101,8 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int = 1, force: b
     summary = RunSummary(total=len(suite.cells), skipped=len(suite.cells) - len(todo))
     progress = progress or GridProgress(None)
     threads = max((c.config["threads"] for c in todo), default=1)
+    if executor == "local":
+        workers = workers or 1
     if executor == "local" and workers * threads > usable_cores():
         progress.warn(f"{workers} workers × {threads} torch threads per cell > "
                       f"{usable_cores()} cores: cells will compete for them")
@@ -271,9 +275,10 @@ def _signals_held():
         yield  # only the main thread handles signals
         return
     received: list[int] = []
-    previous = {sig: signal.signal(sig, lambda signum, frame: received.append(signum))
-                for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous: dict[int, Any] = {}
     try:
+        for sig in (signal.SIGINT, signal.SIGTERM):  # one at a time: each is put back below
+            previous[sig] = signal.signal(sig, lambda signum, frame: received.append(signum))
         yield
     finally:
         for sig, handler in previous.items():

@@ -54,21 +54,23 @@ class ExitAgent(CrashAgent):
 
 
 @dataclass
-class DieOnceConfig:
+class DieTimesConfig:
     after: int = 10**9
-    marker: str = ""
-    """A file. Absent: the agent creates it, then SIGKILLs its own process (a worker lost
-    mid-cell). Present: the agent learns."""
+    times: int = 1
+    counter: str = ""
+    """A file that gets a line per attempt. The first ``times`` attempts SIGKILL their own
+    process (a worker lost mid-cell); later ones learn, and raise at frame ``after``."""
 
 
-class DieOnceAgent(CrashAgent):
+class DieTimesAgent(CrashAgent):
     def __init__(self, ctx):
         super().__init__(ctx)
-        self.marker = Path(ctx.config.marker)
+        self.times, self.counter = ctx.config.times, Path(ctx.config.counter)
 
     def learn(self, budget, recorder):
-        if not self.marker.exists():
-            self.marker.write_text(str(os.getpid()))
+        with open(self.counter, "a") as handle:
+            handle.write(f"{os.getpid()}\n")
+        if len(self.counter.read_text().splitlines()) <= self.times:
             os.kill(os.getpid(), signal.SIGKILL)
         super().learn(budget, recorder)
 
@@ -111,4 +113,5 @@ def register_agents(register):
     register(AgentSpec("die", DieAgent, CrashConfig, kinds, frozenset({"state"})))
     register(AgentSpec("slow", SlowAgent, SlowConfig, kinds, frozenset({"state"})))
     register(AgentSpec("exit", ExitAgent, CrashConfig, kinds, frozenset({"state"})))
-    register(AgentSpec("die-once", DieOnceAgent, DieOnceConfig, kinds, frozenset({"state"})))
+    register(AgentSpec("die-times", DieTimesAgent, DieTimesConfig, kinds,
+                       frozenset({"state"})))
