@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from suites_for_tests import SEN_SARSA, SLOW
 
 from senbench import plugins
 from senbench.errors import SenbenchError
@@ -32,18 +33,7 @@ envs:
 methods:
   sarsa-state:
     agent: sarsa
-  sen-sarsa:
-    agent: sarsa
-    observation: encoded
-    hyperparams: {tilings: 8, tiles: 6, trace_decay: 0.9}
-    encoder:
-      config: {widths: [8, 8, 16, 16], hidden: 32}
-      samples: 300
-      fraction: 1.0
-      epochs: 2
-      test_samples: 100
-    pixels: {height: 32, width: 32}
-seeds: 2
+""" + SEN_SARSA + """seeds: 2
 budget: 2000
 eval: {every: 500, episodes: 2}
 """
@@ -94,22 +84,11 @@ def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path
                                   curves(tmp_path / "ray" / "tiny"))
 
 
-SLOW = """\
-name: slow
-envs:
-  mountaincar: {}
-methods:
-  slow-state: {agent: slow, hyperparams: {sleep_s: 0.004}}
-seeds: 6
-budget: 600
-eval: {every: 300, episodes: 1}
-"""
-
 
 @pytest.mark.parametrize("stop", ["ctrl-c", "sigterm"])
 def test_stopping_a_ray_run_cancels_its_tasks_leaving_only_finished_cells(tmp_path, cli_env,
                                                                           stop):
-    (tmp_path / "slow.yaml").write_text(SLOW)
+    (tmp_path / "slow.yaml").write_text(SLOW.replace("sleep_s: 0.002", "sleep_s: 0.004"))
     cells = tmp_path / "results" / "slow" / "cells"
     command = [sys.executable, "-m", "senbench", "run", str(tmp_path / "slow.yaml"),
                "--executor", "ray", "--workers", "2", "--results", str(tmp_path / "results")]
@@ -239,7 +218,7 @@ class StopAtFirstStart(GridProgress):
 def test_an_interrupt_cancels_the_tasks_on_a_cluster_it_did_not_start(local_ray, test_agents,
                                                                       tmp_path):
     # On a cluster it joined, the runner cannot rely on shutting Ray down: it must cancel.
-    (tmp_path / "slow.yaml").write_text(SLOW.replace("sleep_s: 0.004", "sleep_s: 0.05"))
+    (tmp_path / "slow.yaml").write_text(SLOW.replace("sleep_s: 0.002", "sleep_s: 0.05"))
     suite = load_suite(tmp_path / "slow.yaml", registries())  # 30 s a cell
     summary = run_suite(suite, tmp_path / "results", executor="ray",
                         progress=StopAtFirstStart(None))

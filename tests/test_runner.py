@@ -9,6 +9,7 @@ import psutil
 import pyarrow.parquet as pq
 import pytest
 from curves import curves_of
+from suites_for_tests import SLOW
 
 from senbench.errors import SenbenchError
 from senbench.plugins import registries
@@ -132,17 +133,6 @@ def test_a_cell_that_dies_fails_alone(write_suite, tmp_path, test_agents):
                for o in summary.failed)
     assert len(cell_files(tmp_path)) == 6
 
-
-SLOW = """\
-name: slow
-envs:
-  mountaincar: {}
-methods:
-  slow-state: {agent: slow, hyperparams: {sleep_s: 0.002}}
-seeds: 6
-budget: 600
-eval: {every: 300, episodes: 1}
-"""
 
 
 def _wait_for_files(directory, count, process, timeout=90):

@@ -9,6 +9,7 @@ import time
 import optuna
 import pytest
 import yaml
+from suites_for_tests import SEN_SARSA
 
 from senbench import tuning
 from senbench.plugins import registries
@@ -157,18 +158,7 @@ name: sen
 envs:
   mountaincar: {}
 methods:
-  sen-sarsa:
-    agent: sarsa
-    observation: encoded
-    hyperparams: {tilings: 8, tiles: 6, trace_decay: 0.9}
-    encoder:
-      config: {widths: [8, 8, 16, 16], hidden: 32}
-      samples: 300
-      fraction: 1.0
-      epochs: 2
-      test_samples: 100
-    pixels: {height: 32, width: 32}
-seeds: 1
+""" + SEN_SARSA + """seeds: 1
 budget: 600
 eval: {every: 300, episodes: 1}
 tune:
