@@ -74,7 +74,7 @@ def run(
     = Path("results"),
     force: Annotated[bool, typer.Option(help="Redo cells that already finished.")] = False,
     executor: Annotated[str, typer.Option(
-        help="local: processes on this machine; ray: Ray tasks (pip install 'senbench[ray]')."
+        help="local: processes on this machine; ray: Ray tasks (pip install 'senbench\\[ray]')."
     )] = "local",
     address: Annotated[str | None, typer.Option(
         help="With --executor ray: the cluster (auto, or ray://host:10001). Without it, a "
@@ -82,8 +82,16 @@ def run(
     retries: Annotated[int, typer.Option(
         min=0, help="With --executor ray: how often a cell whose worker died is retried "
                     "before it is recorded as failed.")] = 2,
+    method: Annotated[list[str] | None, typer.Option(
+        help="Run only this method's cells (repeat for several).")] = None,
+    env: Annotated[list[str] | None, typer.Option(
+        help="Run only this env's cells (repeat for several).")] = None,
+    seed: Annotated[list[int] | None, typer.Option(
+        help="Run only this seed's cells (repeat for several).")] = None,
 ) -> None:
-    """Run every cell of a suite that has not finished yet (resumable)."""
+    """Run every cell of a suite that has not finished yet (resumable).
+
+    --method, --env and --seed run a part of the grid; the rest stays as it is."""
     from senbench.progress import GridProgress
     from senbench.runner import EXECUTORS, run_suite
 
@@ -92,14 +100,16 @@ def run(
     if address is not None and executor != "ray":
         raise SenbenchError("--address names a Ray cluster: add --executor ray")
     suite = _load(suite_file)
+    cells = suite.select(method or [], env or [], seed or [])
     signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
     summary = run_suite(suite, results, workers=workers, force=force,
                         progress=GridProgress(err), executor=executor, address=address,
-                        retries=retries)
+                        retries=retries, cells=cells)
     folder = results / suite.name
+    picked = f" (picked from {len(suite.cells)})" if len(cells) < len(suite.cells) else ""
     out.print(
         f"suite '{suite.name}': {summary.ok} finished, {len(summary.failed)} failed, "
-        f"{summary.skipped} already done, of {summary.total} cells → {folder}"
+        f"{summary.skipped} already done, of {summary.total} cells{picked} → {folder}"
     )
     for outcome in summary.failed:
         last = (outcome.error or "").strip().splitlines()[-1:] or [""]

@@ -64,10 +64,10 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
-def pending_cells(suite: Suite, directory: Path, force: bool) -> list[Cell]:
+def pending_cells(cells: list[Cell], directory: Path, force: bool) -> list[Cell]:
     if force:
-        return list(suite.cells)
-    return [c for c in suite.cells if finished_status(cell_path(directory, c.id)) != "ok"]
+        return list(cells)
+    return [c for c in cells if finished_status(cell_path(directory, c.id)) != "ok"]
 
 
 EXECUTORS = ("local", "ray")
@@ -76,8 +76,11 @@ EXECUTORS = ("local", "ray")
 def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None,
               force: bool = False,
               progress: GridProgress | None = None, executor: str = "local",
-              address: str | None = None, retries: int = 2) -> RunSummary:
-    """Run the cells of ``suite`` not yet finished under ``results_root``.
+              address: str | None = None, retries: int = 2,
+              cells: list[Cell] | None = None) -> RunSummary:
+    """Run the cells of ``suite`` not yet finished under ``results_root``; with ``cells``
+    (from :meth:`Suite.select`), only those. The manifest names the whole suite all the
+    same, so ``report`` shows every finished cell of this version.
 
     ``executor="local"``: serially, or ``workers`` processes. ``"ray"``: as Ray tasks, on the
     cluster at ``address`` or on a local instance of ``workers`` CPUs (default: all usable)
@@ -97,8 +100,9 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
     remove_stray_temp_files(directory)
     (directory.parent / "suite.yaml").write_bytes(suite.source.path.read_bytes())
     write_manifest(directory.parent, [c.id for c in suite.cells])
-    todo = pending_cells(suite, directory, force)
-    summary = RunSummary(total=len(suite.cells), skipped=len(suite.cells) - len(todo))
+    cells = suite.cells if cells is None else cells
+    todo = pending_cells(cells, directory, force)
+    summary = RunSummary(total=len(cells), skipped=len(cells) - len(todo))
     progress = progress or GridProgress(None)
     threads = max((c.config["threads"] for c in todo), default=1)
     if executor == "local":
@@ -107,7 +111,7 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         progress.warn(f"{workers} workers × {threads} torch threads per cell > "
                       f"{usable_cores()} cores: cells will compete for them")
     info = RunInfo.gather(Path(results_root) / "encoders")
-    with progress.grid(len(suite.cells), summary.skipped):
+    with progress.grid(len(cells), summary.skipped):
         try:
             todo = _prepare_encoders(todo, directory, info, progress, summary)
             if executor == "ray":

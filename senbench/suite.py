@@ -61,6 +61,23 @@ class Suite:
     def name(self) -> str:
         return self.model.name
 
+    def select(self, methods: list[str] = (), envs: list[str] = (),
+               seeds: list[int] = ()) -> list[Cell]:
+        """The cells of the given methods, envs and seeds (each empty: all). A name the
+        suite does not have is an error that lists those it has."""
+        for what, asked, have in (("method", methods, {c.method for c in self.cells}),
+                                  ("env", envs, {c.env for c in self.cells}),
+                                  ("seed", seeds, {c.seed for c in self.cells})):
+            unknown = [a for a in asked if a not in have]
+            if unknown:
+                raise SuiteError(
+                    f"suite '{self.name}' has no {what} "
+                    f"{', '.join(repr(u) for u in unknown)}; it has: "
+                    f"{', '.join(str(h) for h in sorted(have))}")
+        return [c for c in self.cells
+                if (not methods or c.method in methods) and (not envs or c.env in envs)
+                and (not seeds or c.seed in seeds)]
+
 
 def load_suite(path: str | Path, registries: Registries) -> Suite:
     """Read, validate and expand a suite; raise SuiteError listing every problem found."""

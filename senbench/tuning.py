@@ -57,10 +57,7 @@ class Target:
 
 
 def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
-    cells = [c for c in suite.cells if c.method == method]
-    if not cells:
-        raise SuiteError(f"suite '{suite.name}' has no method '{method}'; it has: "
-                         f"{', '.join(sorted({c.method for c in suite.cells}))}")
+    cells = suite.select(methods=[method])
     envs = sorted({c.env for c in cells})
     if env is None:
         if len(envs) > 1:

@@ -1,4 +1,5 @@
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -13,7 +14,7 @@ from suites_for_tests import SLOW
 
 from senbench.errors import SenbenchError
 from senbench.plugins import registries
-from senbench.results import SCHEMA, finished_status, read_results
+from senbench.results import SCHEMA, current_cells, finished_status, read_results
 from senbench.runner import run_suite
 from senbench.suite import load_suite
 
@@ -252,3 +253,47 @@ def test_without_ray_the_ray_executor_is_a_clear_error_and_nothing_is_written(
     with pytest.raises(SenbenchError, match=r"pip install 'senbench\[ray\]'"):
         run_suite(suite, tmp_path / "results", executor="ray")
     assert not (tmp_path / "results").exists()
+
+
+TWO_METHODS = SARSA.replace("seeds: 3", "seeds: 2").replace(
+    "  sarsa-state: {agent: sarsa}\n",
+    "  sarsa-state: {agent: sarsa}\n  sarsa-fast: {agent: sarsa, hyperparams: {alpha: 0.5}}\n")
+
+
+def test_method_and_seed_options_run_only_that_part_of_the_grid(write_suite, tmp_path,
+                                                                   cli_env):
+    suite_file = write_suite(TWO_METHODS)
+    suite = load_suite(suite_file, registries())
+    results = tmp_path / "results"
+    command = [sys.executable, "-m", "senbench", "run", str(suite_file), "--results",
+               str(results)]
+    wrong = subprocess.run([*command, "--method", "sarsa-fats"], env=cli_env,
+                           capture_output=True, text=True, timeout=300)
+    assert wrong.returncode != 0 and "has no method 'sarsa-fats'" in wrong.stderr
+    assert not results.exists()
+    done = subprocess.run([*command, "--method", "sarsa-fast", "--seed", "1"], env=cli_env,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "1 finished, 0 failed, 0 already done, of 1 cells (picked from 4)" in done.stdout
+    picked = [c.id for c in suite.cells if c.method == "sarsa-fast" and c.seed == 1]
+    assert [f.stem for f in cell_files(tmp_path)] == picked
+    # The manifest is the whole suite's: report still counts the others as this version's.
+    assert current_cells(results / "small") == {c.id for c in suite.cells}
+    first = cell_files(tmp_path)[0].read_bytes()
+
+    _, summary = run(write_suite, tmp_path, TWO_METHODS)  # the rest, by resume
+    assert summary.skipped == 1 and summary.ok == 3
+    assert cell_files(tmp_path)[[c.stem for c in cell_files(tmp_path)].index(picked[0])] \
+        .read_bytes() == first
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--method", "sarsa", "has no method 'sarsa'; it has: sarsa-fast, sarsa-state"),
+    ("--env", "pendulum", "has no env 'pendulum'; it has: mountaincar"),
+    ("--seed", "5", "has no seed 5; it has: 0, 1"),
+])
+def test_picking_what_the_suite_lacks_is_a_clear_error(write_suite, option, value, message):
+    suite = load_suite(write_suite(TWO_METHODS), registries())
+    picked = {option.lstrip("-") + "s": [int(value) if option == "--seed" else value]}
+    with pytest.raises(SenbenchError, match=re.escape(message)):
+        suite.select(**picked)
