@@ -88,10 +88,13 @@ def run(
         help="Run only this env's cells (repeat for several).")] = None,
     seed: Annotated[list[int] | None, typer.Option(
         help="Run only this seed's cells (repeat for several).")] = None,
+    variant: Annotated[list[str] | None, typer.Option(
+        help="Run only this variant's cells, as the report names it, e.g. "
+             "encoder.fraction=0.5 (repeat for several).")] = None,
 ) -> None:
     """Run every cell of a suite that has not finished yet (resumable).
 
-    --method, --env and --seed run a part of the grid; the rest stays as it is."""
+    --method, --env, --seed and --variant run a part of the grid; the rest stays as it is."""
     from senbench.progress import GridProgress
     from senbench.runner import EXECUTORS, run_suite
 
@@ -100,7 +103,7 @@ def run(
     if address is not None and executor != "ray":
         raise SenbenchError("--address names a Ray cluster: add --executor ray")
     suite = _load(suite_file)
-    cells = suite.select(method or [], env or [], seed or [])
+    cells = suite.select(method or [], env or [], seed or [], variant or [])
     signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
     summary = run_suite(suite, results, workers=workers, force=force,
                         progress=GridProgress(err), executor=executor, address=address,

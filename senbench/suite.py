@@ -61,13 +61,16 @@ class Suite:
     def name(self) -> str:
         return self.model.name
 
-    def select(self, methods: list[str] = (), envs: list[str] = (),
-               seeds: list[int] = ()) -> list[Cell]:
-        """The cells of the given methods, envs and seeds (each empty: all). A name the
-        suite does not have is an error that lists those it has."""
+    def select(self, methods: list[str] = (), envs: list[str] = (), seeds: list[int] = (),
+               variants: list[str] = ()) -> list[Cell]:
+        """The cells of the given methods, envs, seeds and variants (each empty: all; a
+        variant as ``path=value`` pairs, e.g. ``encoder.fraction=0.5``). A name the suite
+        does not have is an error that lists those it has."""
         for what, asked, have in (("method", methods, {c.method for c in self.cells}),
                                   ("env", envs, {c.env for c in self.cells}),
-                                  ("seed", seeds, {c.seed for c in self.cells})):
+                                  ("seed", seeds, {c.seed for c in self.cells}),
+                                  ("variant", variants,
+                                   {c.variant for c in self.cells if c.variant})):
             unknown = [a for a in asked if a not in have]
             if unknown:
                 raise SuiteError(
@@ -76,7 +79,7 @@ class Suite:
                     f"{', '.join(str(h) for h in sorted(have))}")
         return [c for c in self.cells
                 if (not methods or c.method in methods) and (not envs or c.env in envs)
-                and (not seeds or c.seed in seeds)]
+                and (not seeds or c.seed in seeds) and (not variants or c.variant in variants)]
 
 
 def load_suite(path: str | Path, registries: Registries) -> Suite:

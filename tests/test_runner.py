@@ -258,6 +258,7 @@ def test_without_ray_the_ray_executor_is_a_clear_error_and_nothing_is_written(
 TWO_METHODS = SARSA.replace("seeds: 3", "seeds: 2").replace(
     "  sarsa-state: {agent: sarsa}\n",
     "  sarsa-state: {agent: sarsa}\n  sarsa-fast: {agent: sarsa, hyperparams: {alpha: 0.5}}\n")
+SWEPT = TWO_METHODS + "variants:\n  sarsa-fast:\n    hyperparams.trace_decay: [0.8, 0.9]\n"
 
 
 def test_method_and_seed_options_run_only_that_part_of_the_grid(write_suite, tmp_path,
@@ -291,9 +292,21 @@ def test_method_and_seed_options_run_only_that_part_of_the_grid(write_suite, tmp
     ("--method", "sarsa", "has no method 'sarsa'; it has: sarsa-fast, sarsa-state"),
     ("--env", "pendulum", "has no env 'pendulum'; it has: mountaincar"),
     ("--seed", "5", "has no seed 5; it has: 0, 1"),
+    ("--variant", "hyperparams.trace_decay=0.7", "has no variant "
+     "'hyperparams.trace_decay=0.7'; it has: hyperparams.trace_decay=0.8, "
+     "hyperparams.trace_decay=0.9"),
 ])
 def test_picking_what_the_suite_lacks_is_a_clear_error(write_suite, option, value, message):
-    suite = load_suite(write_suite(TWO_METHODS), registries())
+    suite = load_suite(write_suite(SWEPT), registries())
     picked = {option.lstrip("-") + "s": [int(value) if option == "--seed" else value]}
     with pytest.raises(SenbenchError, match=re.escape(message)):
         suite.select(**picked)
+
+
+def test_variant_and_method_pick_together(write_suite):
+    suite = load_suite(write_suite(SWEPT), registries())
+    picked = suite.select(methods=["sarsa-fast"], variants=["hyperparams.trace_decay=0.9"])
+    assert [(c.method, c.variant, c.seed) for c in picked] == [
+        ("sarsa-fast", "hyperparams.trace_decay=0.9", 0),
+        ("sarsa-fast", "hyperparams.trace_decay=0.9", 1)]
+    assert len(suite.select(seeds=[1])) == 3  # sarsa-state and both variants of sarsa-fast
