@@ -91,6 +91,10 @@ def run(
     variant: Annotated[list[str] | None, typer.Option(
         help="Run only this variant's cells, as the report names it, e.g. "
              "encoder.fraction=0.5 (repeat for several).")] = None,
+    reuse: Annotated[list[Path] | None, typer.Option(
+        help="Another suite's results folder: a cell it holds finished, the same in all "
+             "but its method and variant names, is copied, not run (repeat for several).")
+    ] = None,
 ) -> None:
     """Run every cell of a suite that has not finished yet (resumable).
 
@@ -107,19 +111,21 @@ def run(
     signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
     summary = run_suite(suite, results, workers=workers, force=force,
                         progress=GridProgress(err), executor=executor, address=address,
-                        retries=retries, cells=cells)
+                        retries=retries, cells=cells, reuse=reuse or [])
     folder = results / suite.name
     picked = f" (picked from {len(suite.cells)})" if len(cells) < len(suite.cells) else ""
     out.print(
         f"suite '{suite.name}': {summary.ok} finished, {len(summary.failed)} failed, "
-        f"{summary.skipped} already done, of {summary.total} cells{picked} → {folder}"
+        f"{summary.skipped} already done, "
+        + (f"{summary.reused} copied from --reuse, " if summary.reused else "")
+        + f"of {summary.total} cells{picked} → {folder}"
     )
     for outcome in summary.failed:
         last = (outcome.error or "").strip().splitlines()[-1:] or [""]
         err.print(f"[red]failed[/] {escape(outcome.label)} ({outcome.cell_id}): "
                   f"{escape(last[0])}", highlight=False)
     if summary.interrupted:
-        left = summary.total - summary.skipped - len(summary.outcomes)
+        left = summary.total - summary.skipped - summary.reused - len(summary.outcomes)
         err.print(f"interrupted: {left} cells not run; run the same command again to resume")
         raise typer.Exit(130)
     if summary.failed:

@@ -32,7 +32,7 @@ class GridProgress:
         self._done: set[str] = set()
 
     @contextmanager
-    def grid(self, total: int, skipped: int) -> Iterator[None]:
+    def grid(self, total: int, skipped: int, copied: int = 0) -> Iterator[None]:
         if self.console is None:
             yield
             return
@@ -47,8 +47,8 @@ class GridProgress:
         )
         if skipped:
             self.console.print(f"resuming: {skipped} of {total} cells already finished")
-        self._grid = self._progress.add_task("grid", total=total, completed=skipped, rate="",
-                                             last_eval="")
+        self._grid = self._progress.add_task("grid", total=total, completed=skipped + copied,
+                                             rate="", last_eval="")
         with self._progress:
             yield
         self._progress = None

@@ -71,8 +71,14 @@ def cell_path(directory: Path, cell_id: str) -> Path:
 
 def write_cell(directory: Path, cell_id: str, rows: list[dict[str, Any]]) -> Path:
     """Write a cell's rows atomically: temp file, fsync, rename."""
+    return write_table(directory, cell_id, pa.Table.from_pylist(rows, schema=SCHEMA))
+
+
+def write_table(directory: Path, cell_id: str, table: pa.Table) -> Path:
+    """Write a cell's table (of :data:`SCHEMA`) atomically: temp file, fsync, rename."""
+    if not table.schema.equals(SCHEMA):
+        raise ValueError(f"cell {cell_id}: its table does not have the results schema")
     directory.mkdir(parents=True, exist_ok=True)
-    table = pa.Table.from_pylist(rows, schema=SCHEMA)
     final = cell_path(directory, cell_id)
     tmp = directory / f".{cell_id}.{os.getpid()}.tmp"
     try:

@@ -37,6 +37,7 @@ from senbench.results import (
     remove_stray_temp_files,
     write_manifest,
 )
+from senbench.reuse import finished_cells, reuse_cells
 from senbench.suite import Cell, Suite
 
 
@@ -46,6 +47,8 @@ class RunSummary:
     skipped: int = 0
     outcomes: list[CellOutcome] = field(default_factory=list)
     interrupted: bool = False
+    reused: int = 0
+    """Cells copied from another suite's results (``reuse``), not run."""
 
     @property
     def failed(self) -> list[CellOutcome]:
@@ -77,10 +80,12 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
               force: bool = False,
               progress: GridProgress | None = None, executor: str = "local",
               address: str | None = None, retries: int = 2,
-              cells: list[Cell] | None = None) -> RunSummary:
+              cells: list[Cell] | None = None, reuse: list[Path] = ()) -> RunSummary:
     """Run the cells of ``suite`` not yet finished under ``results_root``; with ``cells``
     (from :meth:`Suite.select`), only those. The manifest names the whole suite all the
-    same, so ``report`` shows every finished cell of this version.
+    same, so ``report`` shows every finished cell of this version. A cell that one of the
+    ``reuse`` folders (other suites' results) holds finished, identical in all but its
+    method and variant names, is copied from there instead (see :mod:`senbench.reuse`).
 
     ``executor="local"``: serially, or ``workers`` processes. ``"ray"``: as Ray tasks, on the
     cluster at ``address`` or on a local instance of ``workers`` CPUs (default: all usable)
@@ -92,6 +97,10 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         from senbench.ray_runner import import_ray
 
         import_ray()  # before anything is written: a missing extra is a clear error
+    if force and reuse:
+        raise SenbenchError("--force runs finished cells again and --reuse copies them: "
+                            "use one of the two")
+    found = finished_cells(list(reuse)) if reuse else {}  # a wrong folder: before writing
     directory = cells_dir(results_root, suite.name)
     try:
         directory.mkdir(parents=True, exist_ok=True)
@@ -104,6 +113,10 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
     todo = pending_cells(cells, directory, force)
     summary = RunSummary(total=len(cells), skipped=len(cells) - len(todo))
     progress = progress or GridProgress(None)
+    todo, reused = reuse_cells(todo, directory, found)
+    summary.reused = len(reused)
+    for copy in reused:
+        progress.log(f"{copy.cell.label}: copied from {copy.source} (the same run)")
     threads = max((c.config["threads"] for c in todo), default=1)
     if executor == "local":
         workers = workers or 1
@@ -111,7 +124,7 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         progress.warn(f"{workers} workers × {threads} torch threads per cell > "
                       f"{usable_cores()} cores: cells will compete for them")
     info = RunInfo.gather(Path(results_root) / "encoders")
-    with progress.grid(len(cells), summary.skipped):
+    with progress.grid(len(cells), summary.skipped, summary.reused):
         try:
             todo = _prepare_encoders(todo, directory, info, progress, summary)
             if executor == "ray":

@@ -1,0 +1,108 @@
+"""run --reuse: a cell another suite finished, the same in all but its names, is copied."""
+
+import json
+import subprocess
+import sys
+
+import pyarrow.parquet as pq
+import pytest
+from curves import curves_of
+
+from senbench.errors import SenbenchError
+from senbench.plugins import registries
+from senbench.results import SCHEMA, current_cells, finished_status, read_results
+from senbench.runner import run_suite
+from senbench.suite import load_suite
+
+MAIN = """\
+name: main
+envs:
+  mountaincar: {}
+methods:
+  sarsa-state: {agent: sarsa, hyperparams: {alpha: 0.5}}
+seeds: 2
+budget: 1500
+eval: {every: 500, episodes: 2}
+"""
+
+# The same setting, named otherwise and swept: its alpha = 0.5 cells are main's cells.
+SWEEP = """\
+name: sweep
+envs:
+  mountaincar: {}
+methods:
+  sarsa-swept: {agent: sarsa}
+variants:
+  sarsa-swept:
+    hyperparams.alpha: [0.25, 0.5]
+seeds: 2
+budget: 1500
+eval: {every: 500, episodes: 2}
+"""
+
+
+def load(write_suite, text, name):
+    return load_suite(write_suite(text, name), registries())
+
+
+def test_a_cell_the_same_but_for_its_names_is_copied_and_equals_running_it(
+        write_suite, tmp_path):
+    main = load(write_suite, MAIN, "main.yaml")
+    sweep = load(write_suite, SWEEP, "sweep.yaml")
+    run_suite(main, tmp_path / "results")
+    summary = run_suite(sweep, tmp_path / "results", reuse=[tmp_path / "results" / "main"])
+    assert summary.reused == 2 and summary.ok == 2 and not summary.failed
+
+    copied = [c for c in sweep.cells if c.variant == "hyperparams.alpha=0.5"]
+    files = {c.id: tmp_path / "results" / "sweep" / "cells" / f"{c.id}.parquet"
+             for c in copied}
+    for cell in copied:
+        table = pq.read_table(files[cell.id])
+        assert table.schema.equals(SCHEMA) and finished_status(files[cell.id]) == "ok"
+        row = table.slice(0, 1).to_pylist()[0]
+        assert (row["cell_id"], row["suite"], row["method"], row["variant"]) == (
+            cell.id, "sweep", "sarsa-swept", "hyperparams.alpha=0.5")
+        assert json.loads(row["config"]) == cell.config
+    frame = read_results(tmp_path / "results" / "sweep")
+    assert len(frame["cell_id"].unique()) == 4
+    assert current_cells(tmp_path / "results" / "sweep") == {c.id for c in sweep.cells}
+
+    # Running the sweep without --reuse gives the copied curves value for value.
+    ran = run_suite(sweep, tmp_path / "ran")
+    assert ran.reused == 0 and ran.ok == 4
+    assert curves_of(tmp_path / "results" / "sweep").equals(curves_of(tmp_path / "ran" / "sweep"))
+
+
+def test_a_cell_that_differs_in_anything_else_is_run(write_suite, tmp_path):
+    main = load(write_suite, MAIN.replace("budget: 1500", "budget: 1000"), "main.yaml")
+    run_suite(main, tmp_path / "results")
+    sweep = load(write_suite, SWEEP, "sweep.yaml")
+    summary = run_suite(sweep, tmp_path / "results", reuse=[tmp_path / "results" / "main"])
+    assert summary.reused == 0 and summary.ok == 4
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_a_wrong_reuse_folder_or_force_is_a_clear_error_and_nothing_is_written(
+        write_suite, tmp_path, force):
+    sweep = load(write_suite, SWEEP, "sweep.yaml")
+    if force:
+        (tmp_path / "results" / "main" / "cells").mkdir(parents=True)
+        folder, message = tmp_path / "results" / "main", "use one of the two"
+    else:
+        folder, message = tmp_path / "nowhere", "not a suite's results folder"
+    with pytest.raises(SenbenchError, match=message):
+        run_suite(sweep, tmp_path / "results", reuse=[folder], force=force)
+    assert not (tmp_path / "results" / "sweep").exists()
+
+
+def test_the_cli_says_how_many_cells_it_copied(write_suite, tmp_path, cli_env):
+    run_suite(load(write_suite, MAIN, "main.yaml"), tmp_path / "results")
+    done = subprocess.run(
+        [sys.executable, "-m", "senbench", "run", str(write_suite(SWEEP, "sweep.yaml")),
+         "--results", str(tmp_path / "results"), "--reuse", str(tmp_path / "results" / "main"),
+         "--variant", "hyperparams.alpha=0.5"],
+        env=cli_env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert ("0 finished, 0 failed, 0 already done, 2 copied from --reuse, of 2 cells "
+            "(picked from 4)") in done.stdout
+    assert "copied from" in done.stderr
