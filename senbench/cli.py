@@ -209,12 +209,11 @@ def tune(
     seed-mean evaluation curve, a resumable shared study, and the best block exported."""
     import yaml
 
-    from senbench.errors import SuiteError
     from senbench.plugins import registries
     from senbench.runner import usable_cores
     from senbench.tuning import (
-        OBJECTIVES,
         best_block,
+        check_objective,
         make_pruner,
         make_sampler,
         run_study,
@@ -222,8 +221,7 @@ def tune(
         target,
     )
 
-    if objective not in OBJECTIVES:
-        raise SuiteError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
+    check_objective(objective)  # before a study is stored
     suite = _load(suite_file)
     regs = registries()
     tgt = target(suite, method, env, regs)

@@ -53,7 +53,7 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
 
     ``address``: an existing cluster (``auto``, ``ray://host:port``); None starts a local
     instance for this run, with ``workers`` CPUs (default: this machine's), and stops it."""
-    from senbench.runner import _signals_held, usable_cores
+    from senbench.runner import signals_held, usable_cores
 
     ray = import_ray()
     needs = max((c.config["threads"] for c in todo), default=1)
@@ -61,7 +61,7 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
     if not ray.is_initialized():
         # Held: a Ctrl-C while Ray starts is handled once it has; and on leaving, our
         # handlers replace those ray.init installs, which would exit the driver outright.
-        with _signals_held():
+        with signals_held():
             if address is None:
                 # "local": always a new instance, never a cluster `ray start` left running
                 ray.init(address="local", num_cpus=max(workers or usable_cores(), needs),

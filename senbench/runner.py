@@ -252,7 +252,7 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
                 process = context.Process(
                     target=_cell_process, daemon=True, name=f"senbench-cell-{cell.id}",
                     args=(cell, directory, info, writer, extra, os.getpid()))
-                with _signals_held():  # a Ctrl-C mid-start would orphan a half-made cell
+                with signals_held():  # a Ctrl-C mid-start would orphan a half-made cell
                     process.start()
                     running[cell.id] = (cell, process)
                     pipes[cell.id] = reader
@@ -282,7 +282,7 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
 
 
 @contextmanager
-def _signals_held():
+def signals_held():
     """Defer SIGINT and SIGTERM until the block ends; they are then delivered as usual.
 
     Deferred in Python, not masked: masking blocks them in this thread only, and the kernel

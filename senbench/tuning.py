@@ -44,6 +44,11 @@ HEARTBEAT_S = 30
 GRACE_S = 90
 
 
+def check_objective(objective: str) -> None:
+    if objective not in OBJECTIVES:
+        raise SuiteError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
+
+
 @dataclass(frozen=True)
 class Target:
     """What a study tunes: one method of a suite on one env, with a cell to copy."""
@@ -284,8 +289,7 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     from senbench.results import remove_stray_temp_files
     from senbench.runner import RunSummary, _prepare_encoders, _run_processes
 
-    if objective not in OBJECTIVES:
-        raise SuiteError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
+    check_objective(objective)
     optuna.logging.set_verbosity(optuna.logging.WARNING)  # senbench logs each trial itself
     study = optuna.create_study(study_name=study_name, storage=storage, sampler=sampler,
                                 pruner=pruner, direction=OBJECTIVES[objective],
