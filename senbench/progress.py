@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rich.console import Console
@@ -32,7 +33,7 @@ class GridProgress:
         self._done: set[str] = set()
 
     @contextmanager
-    def grid(self, total: int, skipped: int, copied: int = 0) -> Iterator[None]:
+    def grid(self, total: int, skipped: int) -> Iterator[None]:
         if self.console is None:
             yield
             return
@@ -47,8 +48,8 @@ class GridProgress:
         )
         if skipped:
             self.console.print(f"resuming: {skipped} of {total} cells already finished")
-        self._grid = self._progress.add_task("grid", total=total, completed=skipped + copied,
-                                             rate="", last_eval="")
+        self._grid = self._progress.add_task("grid", total=total, completed=skipped, rate="",
+                                             last_eval="")
         with self._progress:
             yield
         self._progress = None
@@ -75,6 +76,15 @@ class GridProgress:
         shown = "" if last_eval is None else f"eval {last_eval:.1f}"
         self._progress.update(task, completed=steps, rate=f"{rate:,.0f} frames/s",
                               last_eval=shown)
+
+    def copied(self, label: str, source: Path, final_eval: float | None) -> None:
+        """A cell copied from another suite's results (``run --reuse``), not run."""
+        if self._progress is None:
+            return
+        self._progress.advance(self._grid)
+        final = "" if final_eval is None else f", final eval {final_eval:.1f}"
+        self._progress.console.print(f"[cyan]copied[/] {escape(label)}{final} from "
+                                     f"{escape(str(source))}", highlight=False)
 
     def finished(self, outcome: CellOutcome) -> None:
         self._done.add(outcome.cell_id)

@@ -37,7 +37,7 @@ from senbench.results import (
     remove_stray_temp_files,
     write_manifest,
 )
-from senbench.reuse import finished_cells, reuse_cells
+from senbench.reuse import copy_cell, curve_key, finished_cells
 from senbench.suite import Cell, Suite
 
 
@@ -100,8 +100,8 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
     if force and reuse:
         raise SenbenchError("--force runs finished cells again and --reuse copies them: "
                             "use one of the two")
-    found = finished_cells(list(reuse)) if reuse else {}  # a wrong folder: before writing
     directory = cells_dir(results_root, suite.name)
+    found = finished_cells(list(reuse), exclude=directory) if reuse else {}  # before writing
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -113,10 +113,6 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
     todo = pending_cells(cells, directory, force)
     summary = RunSummary(total=len(cells), skipped=len(cells) - len(todo))
     progress = progress or GridProgress(None)
-    todo, reused = reuse_cells(todo, directory, found)
-    summary.reused = len(reused)
-    for copy in reused:
-        progress.log(f"{copy.cell.label}: copied from {copy.source} (the same run)")
     threads = max((c.config["threads"] for c in todo), default=1)
     if executor == "local":
         workers = workers or 1
@@ -124,8 +120,9 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         progress.warn(f"{workers} workers × {threads} torch threads per cell > "
                       f"{usable_cores()} cores: cells will compete for them")
     info = RunInfo.gather(Path(results_root) / "encoders")
-    with progress.grid(len(cells), summary.skipped, summary.reused):
+    with progress.grid(len(cells), summary.skipped):
         try:
+            todo = _copy_reused(todo, directory, info, found, progress, summary)
             todo = _prepare_encoders(todo, directory, info, progress, summary)
             if executor == "ray":
                 from senbench.ray_runner import run_cells
@@ -139,6 +136,28 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         except KeyboardInterrupt:
             summary.interrupted = True
     return summary
+
+
+def _copy_reused(todo: list[Cell], directory: Path, info: RunInfo, found: dict[str, Path],
+                 progress: GridProgress, summary: RunSummary) -> list[Cell]:
+    """Copy the cells ``found`` holds (``--reuse``); the cells still to run."""
+    left, other_code = [], 0
+    for cell in todo:
+        source = found.get(curve_key(cell.config))
+        copy = copy_cell(cell, source, directory, info.encoder_cache) if source else None
+        if copy is None:
+            left.append(cell)
+            continue
+        summary.reused += 1
+        progress.copied(cell.label, copy.source, copy.final_eval)
+        if (copy.git_commit, copy.senbench_version) != (info.git_commit,
+                                                        info.versions.get("senbench")):
+            other_code += 1
+    if other_code:
+        progress.warn(f"{other_code} copied cells were computed by another senbench commit or "
+                      "version (their git_commit column says which): if the agents or the "
+                      "evaluation changed since, a run now could give other curves")
+    return left
 
 
 def _prepare_encoders(todo: list[Cell], directory: Path, info: RunInfo,

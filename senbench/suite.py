@@ -72,14 +72,22 @@ class Suite:
                                   ("variant", variants,
                                    {c.variant for c in self.cells if c.variant})):
             unknown = [a for a in asked if a not in have]
+            if unknown and not have:
+                raise SuiteError(f"suite '{self.name}' has no {what}s")
             if unknown:
                 raise SuiteError(
                     f"suite '{self.name}' has no {what} "
                     f"{', '.join(repr(u) for u in unknown)}; it has: "
                     f"{', '.join(str(h) for h in sorted(have))}")
-        return [c for c in self.cells
-                if (not methods or c.method in methods) and (not envs or c.env in envs)
-                and (not seeds or c.seed in seeds) and (not variants or c.variant in variants)]
+        picked = [c for c in self.cells
+                  if (not methods or c.method in methods) and (not envs or c.env in envs)
+                  and (not seeds or c.seed in seeds)
+                  and (not variants or c.variant in variants)]
+        if not picked:
+            raise SuiteError(f"suite '{self.name}' has no cell that is of the picked methods, "
+                             "envs, seeds and variants at once (is the variant another "
+                             "method's?)")
+        return picked
 
 
 def load_suite(path: str | Path, registries: Registries) -> Suite:

@@ -4,13 +4,16 @@ import json
 import subprocess
 import sys
 
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 from curves import curves_of
+from suites_for_tests import SEN_SARSA
 
 from senbench.errors import SenbenchError
 from senbench.plugins import registries
 from senbench.results import SCHEMA, current_cells, finished_status, read_results
+from senbench.reuse import copy_cell, curve_key, finished_cells
 from senbench.runner import run_suite
 from senbench.suite import load_suite
 
@@ -95,8 +98,53 @@ def test_a_wrong_reuse_folder_or_force_is_a_clear_error_and_nothing_is_written(
     assert not (tmp_path / "results" / "sweep").exists()
 
 
+def test_a_source_rewritten_after_the_scan_is_not_copied(write_suite, tmp_path):
+    run_suite(load(write_suite, MAIN, "main.yaml"), tmp_path / "results")
+    sweep = load(write_suite, SWEEP, "sweep.yaml")
+    found = finished_cells([tmp_path / "results" / "main"])
+    cell = next(c for c in sweep.cells if c.variant == "hyperparams.alpha=0.5")
+    source = found[curve_key(cell.config)]
+    set_column(pq.read_table(source), "status", "failed", source)  # as a failed --force rerun
+    assert copy_cell(cell, source, tmp_path / "out", tmp_path / "enc") is None
+    assert not (tmp_path / "out").exists()
+
+
+def test_its_own_folder_named_first_hides_nothing(write_suite, tmp_path):
+    run_suite(load(write_suite, MAIN, "main.yaml"), tmp_path / "results")
+    sweep = load(write_suite, SWEEP, "sweep.yaml")
+    run_suite(sweep, tmp_path / "results", cells=sweep.select(seeds=[0]))
+    summary = run_suite(sweep, tmp_path / "results", reuse=[
+        tmp_path / "results" / "sweep", tmp_path / "results" / "main"])
+    assert summary.skipped == 2 and summary.reused == 1 and summary.ok == 1
+
+
+def test_a_copied_cells_encoder_comes_into_this_results_root(write_suite, tmp_path):
+    text = f"name: main\nenvs:\n  mountaincar: {{}}\nmethods:\n{SEN_SARSA}seeds: 1\n" \
+        "budget: 600\neval: {every: 300, episodes: 1}\n"
+    run_suite(load(write_suite, text, "main.yaml"), tmp_path / "a")
+    renamed = load(write_suite, text.replace("name: main", "name: other")
+                   .replace("sen-sarsa:", "sen-renamed:"), "other.yaml")
+    summary = run_suite(renamed, tmp_path / "b", reuse=[tmp_path / "a" / "main"])
+    assert summary.reused == 1
+    [encoder] = [p.name for p in (tmp_path / "a" / "encoders").iterdir()
+                 if not p.name.startswith(".")]
+    copied = tmp_path / "b" / "encoders" / encoder
+    assert sorted(p.name for p in copied.iterdir()) == sorted(
+        p.name for p in (tmp_path / "a" / "encoders" / encoder).iterdir())
+    assert not list((tmp_path / "b" / "encoders").glob(".*tmp"))
+
+
+def set_column(table, name, value, path):
+    index = table.schema.get_field_index(name)
+    table = table.set_column(index, table.schema.field(index),
+                             pa.array([value] * len(table), pa.string()))
+    pq.write_table(table, path)
+
+
 def test_the_cli_says_how_many_cells_it_copied(write_suite, tmp_path, cli_env):
     run_suite(load(write_suite, MAIN, "main.yaml"), tmp_path / "results")
+    older = sorted((tmp_path / "results" / "main" / "cells").glob("*.parquet"))[0]
+    set_column(pq.read_table(older), "git_commit", "0" * 40, older)  # as by an older commit
     done = subprocess.run(
         [sys.executable, "-m", "senbench", "run", str(write_suite(SWEEP, "sweep.yaml")),
          "--results", str(tmp_path / "results"), "--reuse", str(tmp_path / "results" / "main"),
@@ -105,4 +153,6 @@ def test_the_cli_says_how_many_cells_it_copied(write_suite, tmp_path, cli_env):
     assert done.returncode == 0, done.stdout + done.stderr
     assert ("0 finished, 0 failed, 0 already done, 2 copied from --reuse, of 2 cells "
             "(picked from 4)") in done.stdout
-    assert "copied from" in done.stderr
+    assert done.stderr.count("copied sarsa") == 0  # labels print whole, variant included
+    assert done.stderr.count("copied mountaincar/sarsa-swept[hyperparams.alpha=0.5] seed") == 2
+    assert "1 copied cells were computed by another senbench commit" in done.stderr

@@ -310,3 +310,8 @@ def test_variant_and_method_pick_together(write_suite):
         ("sarsa-fast", "hyperparams.trace_decay=0.9", 0),
         ("sarsa-fast", "hyperparams.trace_decay=0.9", 1)]
     assert len(suite.select(seeds=[1])) == 3  # sarsa-state and both variants of sarsa-fast
+    with pytest.raises(SenbenchError, match="no cell that is of the picked methods"):
+        suite.select(methods=["sarsa-state"], variants=["hyperparams.trace_decay=0.9"])
+    unswept = load_suite(write_suite(TWO_METHODS, "unswept.yaml"), registries())
+    with pytest.raises(SenbenchError, match="suite 'small' has no variants$"):
+        unswept.select(variants=["hyperparams.trace_decay=0.9"])
