@@ -65,6 +65,50 @@ def validate(suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")
 
 @app.command()
 @user_errors
+def status(
+    suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")],
+    results: Annotated[Path, typer.Option(help="Results root the suite runs under.")]
+    = Path("results"),
+    workers: Annotated[int, typer.Option(
+        "--workers", "-w", min=1, help="Workers to estimate the wall clock left for.")] = 1,
+) -> None:
+    """How many cells of a suite have finished, failed or are still to run, and the cell
+    time left, at the mean of each method's finished cells."""
+    from senbench.report import label
+    from senbench.status import duration, suite_status
+
+    suite = _load(suite_file)
+    combos = suite_status(suite, results)
+    table = Table(title=f"suite '{suite.name}' under {results}")
+    for name in ("env", "method", "cells", "finished", "failed", "to run", "mean cell",
+                 "cell time left"):
+        table.add_column(name, justify="left" if name in ("env", "method") else "right")
+    for c in combos:
+        mean, left = c.mean_wall_s, c.left_s
+        table.add_row(escape(c.env), escape(label(c.method, c.variant)),
+                      str(c.cells), str(c.ok), str(c.failed) if c.failed else "",
+                      str(c.to_run) if c.to_run else "",
+                      "" if mean is None else duration(mean),
+                      "?" if left is None else ("" if not left else duration(left)))
+    out.print(table)
+    known = sum(c.left_s for c in combos if c.left_s is not None)
+    unknown = sum(c.to_run for c in combos if c.left_s is None)
+    finished = sum(c.ok for c in combos)
+    total = sum(c.cells for c in combos)
+    line = f"{finished} of {total} cells finished"
+    if finished < total:
+        line += f"; cell time left ≈ {duration(known)}"
+        if workers > 1:
+            line += f" (≈ {duration(known / workers)} on {workers} workers)"
+        if unknown:
+            line += (f", plus {unknown} cells of methods with none finished yet (their time "
+                     "is not known)")
+        line += ". Cells running now count as to run"
+    out.print(line + ".")
+
+
+@app.command()
+@user_errors
 def run(
     suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")],
     workers: Annotated[int | None, typer.Option(

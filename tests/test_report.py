@@ -104,3 +104,33 @@ def test_variant_labels_show_in_brackets(write_suite, tmp_path):
     assert done.returncode == 0, done.stderr
     assert "sarsa-state [hyperparams.alpha=0.5]" in done.stdout  # not eaten as rich markup
     assert "sarsa-state [hyperparams.alpha=1.0]" in done.stdout
+
+
+def test_status_counts_finished_failed_and_left_and_estimates_the_time(
+        write_suite, tmp_path, test_agents):
+    from senbench.status import suite_status
+
+    suite = load_suite(write_suite(SUITE.replace("seeds: 2", "seeds: 3")), registries())
+    before = suite_status(suite, tmp_path)
+    assert [(c.method, c.cells, c.ok, c.failed, c.left_s) for c in before] == [
+        ("sarsa-state", 3, 0, 0, None), ("crash-state", 3, 0, 0, None)]
+    run_suite(suite, tmp_path, cells=suite.select(seeds=[0, 1]))
+    sarsa, crash = suite_status(suite, tmp_path)
+    assert (sarsa.ok, sarsa.failed, sarsa.to_run) == (2, 0, 1)
+    assert sarsa.mean_wall_s > 0 and sarsa.left_s == pytest.approx(sarsa.mean_wall_s)
+    assert (crash.ok, crash.failed, crash.to_run, crash.left_s) == (0, 2, 3, None)
+
+
+def test_status_cli_prints_the_table_and_what_is_left(write_suite, tmp_path):
+    text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
+    suite_file = write_suite(text)
+    suite = load_suite(suite_file, registries())
+    run_suite(suite, tmp_path, cells=suite.select(seeds=[0]))
+    done = subprocess.run([sys.executable, "-m", "senbench", "status", str(suite_file),
+                           "--results", str(tmp_path), "--workers", "2"],
+                          capture_output=True, text=True, env={"COLUMNS": "200",
+                                                               "PATH": "/usr/bin:/bin"})
+    assert done.returncode == 0, done.stderr
+    assert "suite 'rep'" in done.stdout and "sarsa-state" in done.stdout
+    assert "1 of 2 cells finished; cell time left ≈ " in done.stdout
+    assert "on 2 workers" in done.stdout and "not known" not in done.stdout

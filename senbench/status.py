@@ -1,0 +1,82 @@
+"""``senbench status``: how far a suite has got under a results root, and the cell time
+left, estimated from the cells already finished."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from senbench.results import cell_path, cells_dir
+from senbench.suite import Suite
+
+
+@dataclass
+class Combination:
+    """One env × method × variant of a suite, over its seeds."""
+
+    env: str
+    method: str
+    variant: str
+    cells: int = 0
+    ok: int = 0
+    failed: int = 0
+    ok_wall_s: float = 0.0
+
+    @property
+    def to_run(self) -> int:
+        return self.cells - self.ok
+
+    @property
+    def mean_wall_s(self) -> float | None:
+        return self.ok_wall_s / self.ok if self.ok else None
+
+    @property
+    def left_s(self) -> float | None:
+        """Cell time the cells still to run need, at the mean of those finished."""
+        if not self.to_run:
+            return 0.0
+        return None if self.mean_wall_s is None else self.to_run * self.mean_wall_s
+
+
+def _cell_record(path: Path) -> tuple[str, float] | None:
+    """A cell file's status and wall seconds, or None if there is no readable file."""
+    try:
+        table = pq.read_table(path, columns=["kind", "status", "cell_wall_s"])
+    except (FileNotFoundError, pa.ArrowInvalid, OSError):
+        return None
+    for kind, status, wall in zip(*(table[c].to_pylist() for c in
+                                    ("kind", "status", "cell_wall_s")), strict=True):
+        if kind == "cell":
+            return status, wall or 0.0
+    return None
+
+
+def suite_status(suite: Suite, results_root: str | Path) -> list[Combination]:
+    """Per combination, in the suite's order: its cells, how many finished or failed (a
+    failed cell runs again), and the finished cells' wall time."""
+    directory = cells_dir(results_root, suite.name)
+    combos: dict[tuple[str, str, str], Combination] = {}
+    for cell in suite.cells:
+        key = (cell.env, cell.method, cell.variant)
+        combo = combos.setdefault(key, Combination(*key))
+        combo.cells += 1
+        record = _cell_record(cell_path(directory, cell.id))
+        if record is None:
+            continue
+        status, wall = record
+        if status == "ok":
+            combo.ok += 1
+            combo.ok_wall_s += wall
+        else:
+            combo.failed += 1
+    return list(combos.values())
+
+
+def duration(seconds: float) -> str:
+    if seconds < 59.5:
+        return f"{seconds:.0f} s"
+    minutes = round(seconds / 60)
+    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
