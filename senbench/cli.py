@@ -135,6 +135,10 @@ def run(
     variant: Annotated[list[str] | None, typer.Option(
         help="Run only this variant's cells, as the report names it, e.g. "
              "encoder.fraction=0.5 (repeat for several).")] = None,
+    time_limit: Annotated[str | None, typer.Option(
+        help="Start a cell only if it is expected to end within this time of the start "
+             "(2h30m, 150m, 90s), at the mean of its method's finished cells; exit 75 with "
+             "the rest left for the next run.")] = None,
     reuse: Annotated[list[Path] | None, typer.Option(
         help="Another suite's results folder: a cell it holds finished, the same in all "
              "but its method and variant names, is copied, not run (repeat for several).")
@@ -145,17 +149,20 @@ def run(
     --method, --env, --seed and --variant run a part of the grid; the rest stays as it is."""
     from senbench.progress import GridProgress
     from senbench.runner import EXECUTORS, run_suite
+    from senbench.schedule import parse_duration
 
     if executor not in EXECUTORS:
         raise SenbenchError(f"--executor {executor!r}: use one of {', '.join(EXECUTORS)}")
     if address is not None and executor != "ray":
         raise SenbenchError("--address names a Ray cluster: add --executor ray")
+    limit_s = None if time_limit is None else parse_duration(time_limit)
     suite = _load(suite_file)
     cells = suite.select(method or [], env or [], seed or [], variant or [])
     signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
     summary = run_suite(suite, results, workers=workers, force=force,
                         progress=GridProgress(err), executor=executor, address=address,
-                        retries=retries, cells=cells, reuse=reuse or [])
+                        retries=retries, cells=cells, reuse=reuse or [],
+                        time_limit_s=limit_s)
     folder = results / suite.name
     picked = f" (picked from {len(suite.cells)})" if len(cells) < len(suite.cells) else ""
     out.print(
@@ -172,8 +179,17 @@ def run(
         left = summary.total - summary.skipped - summary.reused - len(summary.outcomes)
         err.print(f"interrupted: {left} cells not run; run the same command again to resume")
         raise typer.Exit(130)
+    if summary.not_started:
+        err.print(f"time limit {time_limit}: {summary.not_started} cells not started, as none "
+                  "was expected to end within it (at the mean of its method's finished cells); "
+                  "run the same command again to go on")
+        raise typer.Exit(1 if summary.failed else EXIT_TIME_LIMIT)
     if summary.failed:
         raise typer.Exit(1)
+
+
+EXIT_TIME_LIMIT = 75
+"""sysexits' EX_TEMPFAIL: not done, run again later (a batch job's requeue)."""
 
 
 def _stop_like_ctrl_c(signum, frame) -> None:

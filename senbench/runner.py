@@ -16,7 +16,6 @@ import signal
 import sys
 import threading
 import time
-from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
@@ -38,6 +37,7 @@ from senbench.results import (
     write_manifest,
 )
 from senbench.reuse import copy_cell, curve_key, finished_cells
+from senbench.schedule import Schedule
 from senbench.suite import Cell, Suite
 
 
@@ -49,6 +49,8 @@ class RunSummary:
     interrupted: bool = False
     reused: int = 0
     """Cells copied from another suite's results (``reuse``), not run."""
+    not_started: int = 0
+    """Cells a time limit left for a later run: none was expected to fit in the time left."""
 
     @property
     def failed(self) -> list[CellOutcome]:
@@ -80,12 +82,16 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
               force: bool = False,
               progress: GridProgress | None = None, executor: str = "local",
               address: str | None = None, retries: int = 2,
-              cells: list[Cell] | None = None, reuse: list[Path] = ()) -> RunSummary:
+              cells: list[Cell] | None = None, reuse: list[Path] = (),
+              time_limit_s: float | None = None) -> RunSummary:
     """Run the cells of ``suite`` not yet finished under ``results_root``; with ``cells``
     (from :meth:`Suite.select`), only those. The manifest names the whole suite all the
     same, so ``report`` shows every finished cell of this version. A cell that one of the
     ``reuse`` folders (other suites' results) holds finished, identical in all but its
     method and variant names, is copied from there instead (see :mod:`senbench.reuse`).
+    With ``time_limit_s``, a cell starts only if it is expected to end within that many
+    seconds of the call (see :mod:`senbench.schedule`); ``summary.not_started`` counts the
+    cells left for a later run.
 
     ``executor="local"``: serially, or ``workers`` processes. ``"ray"``: as Ray tasks, on the
     cluster at ``address`` or on a local instance of ``workers`` CPUs (default: all usable)
@@ -97,6 +103,10 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         from senbench.ray_runner import import_ray
 
         import_ray()  # before anything is written: a missing extra is a clear error
+        if time_limit_s is not None:
+            raise SenbenchError("--time-limit works with the local executor; on Ray, give "
+                                "the job a scheduler's limit and resume after it")
+    started = time.monotonic()
     if force and reuse:
         raise SenbenchError("--force runs finished cells again and --reuse copies them: "
                             "use one of the two")
@@ -124,15 +134,18 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         try:
             todo = _copy_reused(todo, directory, info, found, progress, summary)
             todo = _prepare_encoders(todo, directory, info, progress, summary)
+            left = None if time_limit_s is None else time_limit_s - (time.monotonic() - started)
+            schedule = Schedule(todo, left, suite, results_root)
             if executor == "ray":
                 from senbench.ray_runner import run_cells
 
                 run_cells(todo, directory, info, progress, summary, address=address,
                           workers=workers, retries=retries)
             elif workers <= 1:
-                _run_serial(todo, directory, info, progress, summary)
+                _run_serial(schedule, directory, info, progress, summary)
             else:
-                _run_processes(todo, directory, info, workers, progress, summary)
+                _run_processes(todo, directory, info, workers, progress, summary, schedule)
+            summary.not_started = len(schedule.waiting) if executor == "local" else 0
         except KeyboardInterrupt:
             summary.interrupted = True
     return summary
@@ -189,9 +202,9 @@ def _prepare_encoders(todo: list[Cell], directory: Path, info: RunInfo,
     return [c for c in todo if c.id not in lost]
 
 
-def _run_serial(todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,
+def _run_serial(schedule: Schedule, directory: Path, info: RunInfo, progress: GridProgress,
                 summary: RunSummary) -> None:
-    for cell in todo:
+    while (cell := schedule.next()) is not None:
         progress.started(cell.id, cell.label, cell.config["budget"])
         set_threads(cell.config["threads"])
         try:
@@ -199,6 +212,7 @@ def _run_serial(todo: list[Cell], directory: Path, info: RunInfo, progress: Grid
         except Exception as exc:  # outside the agent: e.g. the result could not be written
             outcome = record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
         summary.outcomes.append(outcome)
+        schedule.finished(cell, outcome.status, outcome.wall_s)
         progress.finished(outcome)
 
 
@@ -254,17 +268,19 @@ def _exit_with_parent(runner: int) -> None:
 
 
 def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int,
-                   progress: GridProgress, summary: RunSummary) -> None:
+                   progress: GridProgress, summary: RunSummary,
+                   schedule: Schedule | None = None) -> None:
+    """Run ``todo`` in ``workers`` processes at a time, in the order ``schedule`` (default:
+    ``todo``'s, all of them) hands them out."""
     context = _context()
-    waiting = deque(todo)
+    schedule = schedule or Schedule(todo)
     running: dict[str, tuple[Cell, Any]] = {}
     pipes: dict[str, Any] = {}
     outcomes: dict[str, CellOutcome] = {}
     extra = plugins.registered_module_names()
     try:
-        while waiting or running:
-            while waiting and len(running) < workers:
-                cell = waiting.popleft()
+        while True:
+            while len(running) < workers and (cell := schedule.next()) is not None:
                 # A pipe per cell, not a shared Queue: a Queue's semaphore vanishes with the
                 # runner, and a cell still unpacking its arguments then dies with a traceback.
                 reader, writer = context.Pipe(duplex=False)
@@ -277,6 +293,8 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
                     pipes[cell.id] = reader
                 writer.close()
                 progress.started(cell.id, cell.label, cell.config["budget"])
+            if not running:
+                break
             _drain(pipes, progress, outcomes, timeout=0.2)
             for cell_id, (cell, process) in list(running.items()):
                 if process.exitcode is None:
@@ -290,6 +308,7 @@ def _run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: in
                 del running[cell_id]
                 pipes.pop(cell_id).close()
                 summary.outcomes.append(outcome)
+                schedule.finished(cell, outcome.status, outcome.wall_s)
                 progress.finished(outcome)
     except BaseException:
         for _, process in running.values():

@@ -1,0 +1,82 @@
+"""Which waiting cell starts next: in the suite's order, or, under a time limit, the first
+that is expected to finish before it (``run --time-limit``).
+
+A cell's expected time is the mean wall time of the finished cells of its env, method and
+variant: those already in the results folder, and those that finish during the run. A cell
+of a combination with none finished yet has no expected time and starts while time is left.
+A cell that would not fit is passed over for a later, shorter one (say SEN-SARSA's minutes
+after DQN's hour), so the time left is used rather than lost to a cell cut off at the end.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections import deque
+from pathlib import Path
+
+from senbench.errors import SenbenchError
+from senbench.status import suite_status
+from senbench.suite import Cell, Suite
+
+MARGIN = 1.1
+"""A cell starts if its expected time, times this, fits in the time left."""
+
+_UNITS = {"h": 3600, "m": 60, "s": 1}
+
+
+def parse_duration(text: str) -> float:
+    """Seconds in ``2h30m``, ``150m``, ``90s`` or ``1h``; an error that shows the form."""
+    parts = re.fullmatch(r"\s*(?:(\d+(?:\.\d+)?)h)?\s*(?:(\d+(?:\.\d+)?)m)?\s*"
+                         r"(?:(\d+(?:\.\d+)?)s)?\s*", text)
+    if not text.strip() or parts is None or not any(parts.groups()):
+        raise SenbenchError(f"--time-limit {text!r}: write it as 2h30m, 150m or 90s")
+    seconds = sum(float(v) * u for v, u in zip(parts.groups(), _UNITS.values(), strict=True)
+                  if v)
+    if seconds <= 0:
+        raise SenbenchError(f"--time-limit {text!r}: must be more than 0")
+    return seconds
+
+
+def _key(cell: Cell) -> tuple[str, str, str]:
+    return cell.env, cell.method, cell.variant
+
+
+class Schedule:
+    """The waiting cells; ``next`` hands out the one to start, or None."""
+
+    def __init__(self, todo: list[Cell], limit_s: float | None = None,
+                 suite: Suite | None = None, results_root: str | Path | None = None):
+        self.waiting = deque(todo)
+        self.limit_s = limit_s
+        self.deadline = None if limit_s is None else time.monotonic() + limit_s
+        self._walls: dict[tuple[str, str, str], list[float]] = {}
+        if limit_s is not None and suite is not None and results_root is not None:
+            for combo in suite_status(suite, results_root):
+                if combo.ok:
+                    self._walls[(combo.env, combo.method, combo.variant)] = [
+                        combo.ok_wall_s / combo.ok] * combo.ok
+
+    def expected_s(self, cell: Cell) -> float | None:
+        walls = self._walls.get(_key(cell))
+        return sum(walls) / len(walls) if walls else None
+
+    def left_s(self) -> float:
+        return float("inf") if self.deadline is None else self.deadline - time.monotonic()
+
+    def next(self) -> Cell | None:
+        if self.deadline is None:
+            return self.waiting.popleft() if self.waiting else None
+        left = self.left_s()
+        if left <= 0:
+            return None
+        for cell in self.waiting:
+            expected = self.expected_s(cell)
+            if expected is None or expected * MARGIN <= left:
+                self.waiting.remove(cell)
+                return cell
+        return None
+
+    def finished(self, cell: Cell, status: str, wall_s: float) -> None:
+        if status == "ok":
+            self._walls.setdefault(_key(cell), []).append(wall_s)

@@ -1,0 +1,99 @@
+"""run --time-limit: a cell starts only if its method's finished cells say it will fit."""
+
+import subprocess
+import sys
+import time
+
+import pytest
+
+from senbench import schedule as schedule_module
+from senbench.errors import SenbenchError
+from senbench.plugins import registries
+from senbench.results import finished_status
+from senbench.runner import run_suite
+from senbench.schedule import Schedule, parse_duration
+from senbench.suite import load_suite
+
+# A slow method (≈ 2.4 s a cell: 600 frames of 4 ms) beside a fast one (well under 1 s).
+MIXED = """\
+name: mixed
+envs:
+  mountaincar: {}
+methods:
+  slow-state: {agent: slow, hyperparams: {sleep_s: 0.004}}
+  sarsa-state: {agent: sarsa}
+seeds: 3
+budget: 600
+eval: {every: 300, episodes: 1}
+"""
+
+
+@pytest.mark.parametrize("text, seconds", [
+    ("2h30m", 9000), ("150m", 9000), ("90s", 90), ("1.5h", 5400), ("1h 5m 3s", 3903)])
+def test_durations_read_as_written(text, seconds):
+    assert parse_duration(text) == seconds
+
+
+@pytest.mark.parametrize("text", ["", "90", "ten minutes", "0s", "5m2h"])
+def test_a_bad_duration_says_how_to_write_one(text):
+    with pytest.raises(SenbenchError, match="2h30m|more than 0"):
+        parse_duration(text)
+
+
+def test_a_cell_that_would_not_fit_is_passed_over_for_one_that_does(
+        write_suite, test_agents, monkeypatch):
+    suite = load_suite(write_suite(MIXED), registries())
+    slow = [c for c in suite.cells if c.method == "slow-state"]
+    fast = [c for c in suite.cells if c.method == "sarsa-state"]
+    clock = [1000.0]
+    monkeypatch.setattr(schedule_module.time, "monotonic", lambda: clock[0])
+    plan = Schedule(slow + fast, limit_s=100)
+    assert plan.next() is slow[0]  # nothing known yet: it starts while time is left
+    plan.finished(slow[0], "ok", 95.0)
+    assert plan.next() is fast[0]  # 95 s × 1.1 does not fit in 100 s; unknown sarsa does
+    plan.finished(fast[0], "ok", 1.0)
+    plan.finished(fast[0], "failed", 500.0)  # a failed cell says nothing about the time
+    clock[0] += 50
+    assert plan.next() is fast[1]
+    clock[0] += 50  # the limit is reached: nothing more starts
+    assert plan.next() is None
+    assert list(plan.waiting) == slow[1:] + fast[2:]
+    unlimited = Schedule(slow + fast)
+    assert [unlimited.next() for _ in range(6)] == slow + fast and unlimited.next() is None
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_time_limit_runs_what_fits_and_leaves_the_rest(write_suite, tmp_path, test_agents,
+                                                         workers):
+    suite = load_suite(write_suite(MIXED), registries())
+    run_suite(suite, tmp_path, cells=suite.select(methods=["slow-state"], seeds=[0]))
+    started = time.monotonic()
+    summary = run_suite(suite, tmp_path, workers=workers, time_limit_s=1.5)
+    # A slow cell is known to take ≈ 2.4 s: none starts. The sarsa cells start while time is
+    # left (the first with no time known), so at least one runs.
+    ran = {o.cell_id for o in summary.outcomes}
+    assert not ran & {c.id for c in suite.cells if c.method == "slow-state"}
+    assert ran and all(o.status == "ok" for o in summary.outcomes)
+    assert summary.not_started == 5 - len(ran) >= 2
+    assert time.monotonic() - started < 10
+    again = run_suite(suite, tmp_path, workers=workers)
+    assert again.not_started == 0 and again.skipped == 1 + len(ran) and not again.failed
+    assert all(finished_status(tmp_path / "mixed" / "cells" / f"{c.id}.parquet") == "ok"
+               for c in suite.cells)
+
+
+def test_the_cli_exits_75_when_the_time_limit_leaves_cells(write_suite, tmp_path, cli_env):
+    suite_file = write_suite(MIXED)
+    command = [sys.executable, "-m", "senbench", "run", str(suite_file), "--results",
+               str(tmp_path), "--method", "slow-state"]
+    first = subprocess.run([*command, "--seed", "0"], env=cli_env, capture_output=True,
+                           text=True, timeout=300)
+    assert first.returncode == 0, first.stdout + first.stderr
+    done = subprocess.run([*command, "--time-limit", "1s"], env=cli_env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 75, done.stdout + done.stderr
+    assert "time limit 1s: 2 cells not started" in done.stderr
+    assert "run the same command again to go on" in done.stderr
+    bad = subprocess.run([*command, "--time-limit", "soon"], env=cli_env, capture_output=True,
+                         text=True, timeout=300)
+    assert bad.returncode == 2 and "write it as 2h30m" in bad.stderr
