@@ -97,12 +97,16 @@ def status(
     total = sum(c.cells for c in combos)
     line = f"{finished} of {total} cells finished"
     if finished < total:
-        line += f"; cell time left ≈ {duration(known)}"
-        if workers > 1:
-            line += f" (≈ {duration(known / workers)} on {workers} workers)"
+        if known or not unknown:
+            line += f"; cell time left ≈ {duration(known)}"
+            if workers > 1:
+                line += f" (≈ {duration(known / workers)} on {workers} workers)"
+            if unknown:
+                line += f", plus {unknown} cells"
+        else:
+            line += f"; {unknown} cells left"
         if unknown:
-            line += (f", plus {unknown} cells of methods with none finished yet (their time "
-                     "is not known)")
+            line += " of methods with none finished yet (their time is not known)"
         line += ". Cells running now count as to run"
     out.print(line + ".")
 
