@@ -206,12 +206,16 @@ def report(
     results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
+    threshold: Annotated[list[str] | None, typer.Option(
+        help="Frames to threshold at this return instead of the env's: -150 (every env) "
+             "or mountaincar=-150 (repeat for several envs).")] = None,
 ) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
-    from senbench.report import render, summarize
+    from senbench.report import parse_thresholds, render, summarize, with_thresholds
     from senbench.results import read_results
 
-    results = read_results(results_dir, include_stale=all_cells)
+    thresholds = parse_thresholds(threshold or [])
+    results = with_thresholds(read_results(results_dir, include_stale=all_cells), thresholds)
     render(summarize(results), out)
     if results.attrs.get("stale"):
         err.print(f"left out {results.attrs['stale']} cells of earlier versions of the suite "
@@ -227,15 +231,22 @@ def compare(
         help="The results folder holding methods A and B.")] = None,
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
+    threshold: Annotated[list[str] | None, typer.Option(
+        help="Frames to threshold at this return instead of the env's: -150 (every env) "
+             "or mountaincar=-150 (repeat for several envs).")] = None,
 ) -> None:
     """A against B per env: IQM with CIs and the probability that A does better."""
     from senbench.compare import pairs_across_folders, pairs_in_one_folder, render
     from senbench.errors import ResultsError
+    from senbench.report import parse_thresholds
 
+    thresholds = parse_thresholds(threshold or [])
     if results is not None:
-        pairs = pairs_in_one_folder(results, a, b, include_stale=all_cells)
+        pairs = pairs_in_one_folder(results, a, b, include_stale=all_cells,
+                                    thresholds=thresholds)
     elif Path(a).is_dir() and Path(b).is_dir():
-        pairs = pairs_across_folders(Path(a), Path(b), include_stale=all_cells)
+        pairs = pairs_across_folders(Path(a), Path(b), include_stale=all_cells,
+                                     thresholds=thresholds)
     else:
         raise ResultsError("name two results folders, or two methods and the folder that "
                            "holds them: senbench compare sen-sarsa sarsa-state --results "
@@ -454,13 +465,18 @@ def plot_curves_command(
         "--out", help="PNG file to write (default: RESULTS_DIR/curves.png).")] = None,
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
+    threshold: Annotated[list[str] | None, typer.Option(
+        help="Draw this return as the threshold instead of the env's: -150 or "
+             "mountaincar=-150.")] = None,
 ) -> None:
     """Evaluation return against frames, mean and 95% CI band over seeds per method (the
     paper's Figs. 4, 5, 8 and 9)."""
     from senbench.plots import plot_curves
+    from senbench.report import parse_thresholds, with_thresholds
     from senbench.results import read_results
 
-    results = read_results(results_dir, include_stale=all_cells)
+    results = with_thresholds(read_results(results_dir, include_stale=all_cells),
+                              parse_thresholds(threshold or []))
     png = png or results_dir / "curves.png"
     suite = results["suite"].iloc[0]
     envs = plot_curves(results, png, f"{suite}: learning curves")

@@ -19,7 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from senbench.errors import ResultsError
-from senbench.report import METRICS, label, per_cell
+from senbench.report import METRICS, label, per_cell, with_thresholds
 from senbench.results import read_results
 from senbench.stats import improvement_ci, iqm, probability_of_improvement, stratified_ci
 
@@ -50,9 +50,10 @@ def _finished(results: pd.DataFrame, folder: Path) -> pd.DataFrame:
     return cells
 
 
-def pairs_in_one_folder(folder: Path, a: str, b: str,
-                        include_stale: bool = False) -> list[tuple[str, Side, Side]]:
-    cells = _finished(read_results(folder, include_stale=include_stale), folder)
+def pairs_in_one_folder(folder: Path, a: str, b: str, include_stale: bool = False,
+                        thresholds: dict | None = None) -> list[tuple[str, Side, Side]]:
+    cells = _finished(with_thresholds(read_results(folder, include_stale=include_stale),
+                                      thresholds or {}), folder)
     known = sorted(set(cells["label"]))
     for name in (a, b):
         if name not in known:
@@ -68,10 +69,12 @@ def pairs_in_one_folder(folder: Path, a: str, b: str,
     return pairs
 
 
-def pairs_across_folders(a: Path, b: Path,
-                         include_stale: bool = False) -> list[tuple[str, Side, Side]]:
-    left = _finished(read_results(a, include_stale=include_stale), a)
-    right = _finished(read_results(b, include_stale=include_stale), b)
+def pairs_across_folders(a: Path, b: Path, include_stale: bool = False,
+                         thresholds: dict | None = None) -> list[tuple[str, Side, Side]]:
+    left = _finished(with_thresholds(read_results(a, include_stale=include_stale),
+                                     thresholds or {}), a)
+    right = _finished(with_thresholds(read_results(b, include_stale=include_stale),
+                                      thresholds or {}), b)
     pairs = []
     for env in sorted(set(left["env"]) & set(right["env"])):
         lg, rg = left[left["env"] == env], right[right["env"] == env]

@@ -8,6 +8,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from senbench.errors import ResultsError
 from senbench.metrics import FINAL_WINDOW, THRESHOLD_WINDOW, cell_metrics
 from senbench.stats import iqm, stratified_ci
 
@@ -16,6 +17,47 @@ METRICS = {  # summary prefix → (per-cell column, higher is better)
     "steps": ("steps_to_threshold", False),
     "auc": ("auc", True),
 }
+
+
+def parse_thresholds(specs: list[str]) -> dict[str | None, float]:
+    """``--threshold`` values: ``-150`` (every env of the results) or ``mountaincar=-150``."""
+    thresholds: dict[str | None, float] = {}
+    for spec in specs:
+        env, _, value = spec.rpartition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not np.isfinite(number) or (_ and not env):
+            raise ResultsError(f"--threshold {spec!r}: give a return, e.g. -150, or an env "
+                               "and a return, e.g. mountaincar=-150")
+        thresholds[env or None] = number
+    if None in thresholds and len(thresholds) > 1:
+        raise ResultsError("--threshold: give one return for every env, or ENV=RETURN for "
+                           "each, not both")
+    return thresholds
+
+
+def with_thresholds(results: pd.DataFrame, thresholds: dict[str | None, float]
+                    ) -> pd.DataFrame:
+    """``results`` with the threshold of each named env (``None``: the only env) replaced,
+    so that frames to threshold, the report's title and the plots' dashed line use it."""
+    if not thresholds:
+        return results
+    envs = sorted(set(results["env"]))
+    if None in thresholds:
+        if len(envs) > 1:
+            raise ResultsError(f"these results hold envs {', '.join(envs)}: give --threshold "
+                               "ENV=RETURN for each one to change")
+        thresholds = {envs[0]: thresholds[None]}
+    unknown = sorted(set(thresholds) - set(envs))
+    if unknown:
+        raise ResultsError(f"--threshold names env {', '.join(unknown)}, which these results "
+                           f"do not hold; they hold: {', '.join(envs)}")
+    results = results.copy()
+    for env, value in thresholds.items():
+        results.loc[results["env"] == env, "threshold"] = value
+    return results
 
 
 def label(method: str, variant: str) -> str:

@@ -1,11 +1,12 @@
 import subprocess
 import sys
 
+import pandas as pd
 import pytest
 
 from senbench.errors import ResultsError
 from senbench.plugins import registries
-from senbench.report import summarize
+from senbench.report import parse_thresholds, summarize, with_thresholds
 from senbench.results import read_results
 from senbench.runner import run_suite
 from senbench.suite import load_suite
@@ -134,3 +135,40 @@ def test_status_cli_prints_the_table_and_what_is_left(write_suite, tmp_path):
     assert "suite 'rep'" in done.stdout and "sarsa-state" in done.stdout
     assert "1 of 2 cells finished; cell time left ≈ " in done.stdout
     assert "on 2 workers" in done.stdout and "not known" not in done.stdout
+
+
+@pytest.mark.parametrize("specs, expected", [
+    (["-150"], {None: -150.0}), (["mountaincar=-150", "pendulum=-300"],
+                                 {"mountaincar": -150.0, "pendulum": -300.0})])
+def test_thresholds_read_as_written(specs, expected):
+    assert parse_thresholds(specs) == expected
+
+
+@pytest.mark.parametrize("specs, message", [
+    (["low"], "give a return"), (["=-150"], "give a return"), (["mountaincar=inf"],
+                                                                 "give a return"),
+    (["-150", "pendulum=-300"], "not both")])
+def test_a_bad_threshold_says_how_to_write_one(specs, message):
+    with pytest.raises(ResultsError, match=message):
+        parse_thresholds(specs)
+
+
+def test_another_threshold_changes_frames_to_threshold_and_the_title(write_suite, tmp_path):
+    text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
+    run_suite(load_suite(write_suite(text), registries()), tmp_path)
+    results = read_results(tmp_path / "rep")
+    # Untrained, every episode times out at -200: at -200 every seed is there from frame 0.
+    at_200 = summarize(with_thresholds(results, parse_thresholds(["-200"]))).iloc[0]
+    assert at_200["threshold"] == -200 and at_200["reached"] == 2
+    assert at_200["steps_iqm"] == 0
+    assert summarize(results).iloc[0]["threshold"] == -110
+    with pytest.raises(ResultsError, match="do not hold; they hold: mountaincar"):
+        with_thresholds(results, {"pendulum": -300.0})
+    two_envs = pd.concat([results, results.assign(env="pendulum")])
+    with pytest.raises(ResultsError, match="give --threshold ENV=RETURN for each"):
+        with_thresholds(two_envs, {None: -150.0})
+    done = subprocess.run([sys.executable, "-m", "senbench", "report", str(tmp_path / "rep"),
+                           "--threshold", "-200"], capture_output=True, text=True,
+                          env={"COLUMNS": "200", "PATH": "/usr/bin:/bin"})
+    assert done.returncode == 0, done.stderr
+    assert "threshold -200" in done.stdout and "not reached" not in done.stdout
