@@ -73,12 +73,17 @@ def status(
         "--workers", "-w", min=1, help="Workers to estimate the wall clock left for.")] = 1,
 ) -> None:
     """How many cells of a suite have finished, failed or are still to run, and the cell
-    time left, at the mean of each method's finished cells."""
+    time left, at the mean of the finished cells of each env, method and variant."""
     from senbench.report import label
+    from senbench.results import cells_dir
     from senbench.status import duration, suite_status
 
     suite = _load(suite_file)
     combos = suite_status(suite, results)
+    if not cells_dir(results, suite.name).is_dir():
+        err.print(f"[yellow]warning:[/] {escape(str(cells_dir(results, suite.name)))} does not "
+                  "exist: nothing of this suite has run under this results root (--results)",
+                  highlight=False)
     table = Table(title=f"suite '{suite.name}' under {results}")
     for name in ("env", "method", "cells", "finished", "failed", "to run", "mean cell",
                  "cell time left"):
@@ -140,9 +145,9 @@ def run(
         help="Run only this variant's cells, as the report names it, e.g. "
              "encoder.fraction=0.5 (repeat for several).")] = None,
     time_limit: Annotated[str | None, typer.Option(
-        help="Start a cell only if it is expected to end within this time of the start "
-             "(2h30m, 150m, 90s), at the mean of its method's finished cells; exit 75 with "
-             "the rest left for the next run.")] = None,
+        help="Start a cell only if it is expected to end within this time of the run's "
+             "start (2h30m, 150m, 90s), at the mean of the finished cells of its env, method "
+             "and variant; exit 75 with the rest left for the next run.")] = None,
     reuse: Annotated[list[Path] | None, typer.Option(
         help="Another suite's results folder: a cell it holds finished, the same in all "
              "but its method and variant names, is copied, not run (repeat for several).")
@@ -184,9 +189,10 @@ def run(
         err.print(f"interrupted: {left} cells not run; run the same command again to resume")
         raise typer.Exit(130)
     if summary.not_started:
-        err.print(f"time limit {time_limit}: {summary.not_started} cells not started, as none "
-                  "was expected to end within it (at the mean of its method's finished cells); "
-                  "run the same command again to go on")
+        err.print(f"time limit {time_limit}: {summary.not_started} cells not started (the "
+                  "limit was reached, or no waiting cell was expected to end within it at the "
+                  "mean of the finished cells of its env, method and variant); run the same "
+                  "command again to go on")
         raise typer.Exit(1 if summary.failed else EXIT_TIME_LIMIT)
     if summary.failed:
         raise typer.Exit(1)
@@ -207,8 +213,8 @@ def report(
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
     threshold: Annotated[list[str] | None, typer.Option(
-        help="Frames to threshold at this return instead of the env's: -150 (every env) "
-             "or mountaincar=-150 (repeat for several envs).")] = None,
+        help="Frames to threshold at this return instead of the env's: -150 (results of "
+             "one env) or mountaincar=-150 (repeat for several envs).")] = None,
 ) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
     from senbench.report import parse_thresholds, render, summarize, with_thresholds
@@ -232,8 +238,8 @@ def compare(
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
     threshold: Annotated[list[str] | None, typer.Option(
-        help="Frames to threshold at this return instead of the env's: -150 (every env) "
-             "or mountaincar=-150 (repeat for several envs).")] = None,
+        help="Frames to threshold at this return instead of the env's: -150 (results of "
+             "one env) or mountaincar=-150 (repeat for several envs).")] = None,
 ) -> None:
     """A against B per env: IQM with CIs and the probability that A does better."""
     from senbench.compare import pairs_across_folders, pairs_in_one_folder, render
@@ -466,8 +472,8 @@ def plot_curves_command(
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
     threshold: Annotated[list[str] | None, typer.Option(
-        help="Draw this return as the threshold instead of the env's: -150 or "
-             "mountaincar=-150.")] = None,
+        help="Draw this return as the threshold instead of the env's: -150 (results of "
+             "one env) or mountaincar=-150 (repeat for several envs).")] = None,
 ) -> None:
     """Evaluation return against frames, mean and 95% CI band over seeds per method (the
     paper's Figs. 4, 5, 8 and 9)."""

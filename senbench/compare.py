@@ -71,10 +71,10 @@ def pairs_in_one_folder(folder: Path, a: str, b: str, include_stale: bool = Fals
 
 def pairs_across_folders(a: Path, b: Path, include_stale: bool = False,
                          thresholds: dict | None = None) -> list[tuple[str, Side, Side]]:
-    left = _finished(with_thresholds(read_results(a, include_stale=include_stale),
-                                     thresholds or {}), a)
-    right = _finished(with_thresholds(read_results(b, include_stale=include_stale),
-                                      thresholds or {}), b)
+    left, right = (read_results(f, include_stale=include_stale) for f in (a, b))
+    envs = set(left["env"]) | set(right["env"])
+    left = _finished(with_thresholds(left, thresholds or {}, envs), a)
+    right = _finished(with_thresholds(right, thresholds or {}, envs), b)
     pairs = []
     for env in sorted(set(left["env"]) & set(right["env"])):
         lg, rg = left[left["env"] == env], right[right["env"] == env]
@@ -123,8 +123,10 @@ def _value(value: float, ci: tuple[float, float], digits: int) -> str:
 def render(pairs: list[tuple[str, Side, Side]], console: Console) -> None:
     for env, a, b in pairs:
         table = compare(a, b)
+        thresholds = sorted(set(a.cells["threshold"]) | set(b.cells["threshold"]))
         out = Table(title=f"{env}: A = {escape(a.name)} ({len(a.cells)} seeds) vs "
-                          f"B = {escape(b.name)} ({len(b.cells)} seeds)",
+                          f"B = {escape(b.name)} ({len(b.cells)} seeds); threshold "
+                          f"{' / '.join(f'{t:g}' for t in thresholds)}",
                     caption="IQM [95% bootstrap CI] over seeds. P(A better): the chance that "
                     "a run of A does better than a run of B (higher return or AUC, fewer "
                     "frames to threshold; ties count half), with its 95% bootstrap CI.")

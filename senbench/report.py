@@ -20,7 +20,7 @@ METRICS = {  # summary prefix → (per-cell column, higher is better)
 
 
 def parse_thresholds(specs: list[str]) -> dict[str | None, float]:
-    """``--threshold`` values: ``-150`` (every env of the results) or ``mountaincar=-150``."""
+    """``--threshold`` values: ``-150`` (results of one env) or ``mountaincar=-150``."""
     thresholds: dict[str | None, float] = {}
     for spec in specs:
         env, _, value = spec.rpartition("=")
@@ -38,13 +38,15 @@ def parse_thresholds(specs: list[str]) -> dict[str | None, float]:
     return thresholds
 
 
-def with_thresholds(results: pd.DataFrame, thresholds: dict[str | None, float]
-                    ) -> pd.DataFrame:
+def with_thresholds(results: pd.DataFrame, thresholds: dict[str | None, float],
+                    envs: set[str] | None = None) -> pd.DataFrame:
     """``results`` with the threshold of each named env (``None``: the only env) replaced,
-    so that frames to threshold, the report's title and the plots' dashed line use it."""
+    so that frames to threshold, the report's title and the plots' dashed line use it.
+    ``envs``: the envs the names are checked against (default: those of ``results``; two
+    folders compared give the envs of both)."""
     if not thresholds:
         return results
-    envs = sorted(set(results["env"]))
+    envs = sorted(envs if envs is not None else set(results["env"]))
     if None in thresholds:
         if len(envs) > 1:
             raise ResultsError(f"these results hold envs {', '.join(envs)}: give --threshold "

@@ -135,6 +135,9 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
             todo = _copy_reused(todo, directory, info, found, progress, summary)
             todo = _prepare_encoders(todo, directory, info, progress, summary)
             left = None if time_limit_s is None else time_limit_s - (time.monotonic() - started)
+            if left is not None and left <= 0 and todo:
+                progress.warn("the time limit ran out while state encoders were trained; "
+                              "they are cached, so the next run starts cells at once")
             schedule = Schedule(todo, left, suite, results_root)
             if executor == "ray":
                 from senbench.ray_runner import run_cells

@@ -3,16 +3,19 @@ that is expected to finish before it (``run --time-limit``).
 
 A cell's expected time is the mean wall time of the finished cells of its env, method and
 variant: those already in the results folder, and those that finish during the run. A cell
-of a combination with none finished yet has no expected time and starts while time is left.
-A cell that would not fit is passed over for a later, shorter one (say SEN-SARSA's minutes
-after DQN's hour), so the time left is used rather than lost to a cell cut off at the end.
+of a combination with none finished yet has no expected time: it starts while time is left,
+but only one cell of that combination at a time, until one finishes and gives the time (so
+eight workers do not start eight hour-long cells of an unknown method at the deadline's
+edge). A cell that would not fit is passed over for a later, shorter one (say SEN-SARSA's
+minutes after DQN's hour), so the time left is used rather than lost to a cell cut off at
+the end. The time counts from the run's start, state encoders' training included.
 """
 
 from __future__ import annotations
 
 import re
 import time
-from collections import deque
+from collections import Counter, deque
 from pathlib import Path
 
 from senbench.errors import SenbenchError
@@ -51,6 +54,7 @@ class Schedule:
         self.limit_s = limit_s
         self.deadline = None if limit_s is None else time.monotonic() + limit_s
         self._walls: dict[tuple[str, str, str], list[float]] = {}
+        self._running: Counter[tuple[str, str, str]] = Counter()
         if limit_s is not None and suite is not None and results_root is not None:
             for combo in suite_status(suite, results_root):
                 if combo.ok:
@@ -72,11 +76,15 @@ class Schedule:
             return None
         for cell in self.waiting:
             expected = self.expected_s(cell)
+            if expected is None and self._running[_key(cell)]:
+                continue  # one cell of an unknown combination at a time
             if expected is None or expected * MARGIN <= left:
                 self.waiting.remove(cell)
+                self._running[_key(cell)] += 1
                 return cell
         return None
 
     def finished(self, cell: Cell, status: str, wall_s: float) -> None:
+        self._running[_key(cell)] -= 1
         if status == "ok":
             self._walls.setdefault(_key(cell), []).append(wall_s)

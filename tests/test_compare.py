@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import pytest
+from rich.console import Console
 
 from senbench.compare import Side, compare
 from senbench.plots import learning_curves
@@ -108,3 +109,26 @@ def test_plot_curves_draws_every_method_on_the_shared_frames(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
     done = cli("plot", "curves", str(tmp_path / "missing"))
     assert done.returncode == 2
+
+
+def test_compare_two_folders_at_another_threshold(write_suite, tmp_path):
+    from senbench.compare import pairs_across_folders, render
+    from senbench.errors import ResultsError
+    from senbench.plugins import registries
+    from senbench.runner import run_suite
+    from senbench.suite import load_suite
+
+    text = ("name: {name}\nenvs:\n  mountaincar: {{}}\nmethods:\n  sarsa-state: {{agent: "
+            "sarsa}}\nseeds: 2\nbudget: 1000\neval: {{every: 500, episodes: 1}}\n")
+    for name in ("a", "b"):
+        run_suite(load_suite(write_suite(text.format(name=name), f"{name}.yaml"),
+                             registries()), tmp_path)
+    # Untrained episodes time out at -200: at -200 every seed is there from frame 0.
+    [(env, a, b)] = pairs_across_folders(tmp_path / "a", tmp_path / "b",
+                                         thresholds={"mountaincar": -200.0})
+    assert env == "mountaincar" and set(a.cells["steps_to_threshold"]) == {0.0}
+    console = Console(record=True, width=200)
+    render([(env, a, b)], console)
+    assert "threshold -200" in console.export_text()
+    with pytest.raises(ResultsError, match="names env pendulum"):
+        pairs_across_folders(tmp_path / "a", tmp_path / "b", thresholds={"pendulum": -300.0})

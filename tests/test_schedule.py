@@ -48,16 +48,19 @@ def test_a_cell_that_would_not_fit_is_passed_over_for_one_that_does(
     clock = [1000.0]
     monkeypatch.setattr(schedule_module.time, "monotonic", lambda: clock[0])
     plan = Schedule(slow + fast, limit_s=100)
-    assert plan.next() is slow[0]  # nothing known yet: it starts while time is left
+    assert plan.next() is slow[0]  # nothing known yet: it starts while time is left...
+    assert plan.next() is fast[0]  # ...but only one cell of a combination with no time
+    assert plan.next() is None
     plan.finished(slow[0], "ok", 95.0)
-    assert plan.next() is fast[0]  # 95 s × 1.1 does not fit in 100 s; unknown sarsa does
-    plan.finished(fast[0], "ok", 1.0)
+    assert plan.next() is None  # 95 s × 1.1 does not fit in 100 s; fast[0] still runs
     plan.finished(fast[0], "failed", 500.0)  # a failed cell says nothing about the time
-    clock[0] += 50
     assert plan.next() is fast[1]
+    plan.finished(fast[1], "ok", 1.0)
+    clock[0] += 50
+    assert plan.next() is fast[2]
     clock[0] += 50  # the limit is reached: nothing more starts
     assert plan.next() is None
-    assert list(plan.waiting) == slow[1:] + fast[2:]
+    assert list(plan.waiting) == slow[1:]
     unlimited = Schedule(slow + fast)
     assert [unlimited.next() for _ in range(6)] == slow + fast and unlimited.next() is None
 
