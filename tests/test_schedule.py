@@ -100,3 +100,19 @@ def test_the_cli_exits_75_when_the_time_limit_leaves_cells(write_suite, tmp_path
     bad = subprocess.run([*command, "--time-limit", "soon"], env=cli_env, capture_output=True,
                          text=True, timeout=300)
     assert bad.returncode == 2 and "write it as 2h30m" in bad.stderr
+
+
+def test_a_failed_cell_makes_the_exit_1_even_with_cells_left(write_suite, tmp_path, cli_env):
+    suite_file = write_suite(MIXED.replace(
+        "  sarsa-state: {agent: sarsa}\n",
+        "  crash-state: {agent: crash, hyperparams: {after: 5}}\n"))
+    command = [sys.executable, "-m", "senbench", "run", str(suite_file), "--results",
+               str(tmp_path)]
+    first = subprocess.run([*command, "--method", "slow-state", "--seed", "0"], env=cli_env,
+                           capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stdout + first.stderr
+    done = subprocess.run([*command, "--time-limit", "1s"], env=cli_env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 1, done.stdout + done.stderr
+    # The crash cells fail at once; how many start within the second depends on the machine.
+    assert "0 failed" not in done.stdout and "cells not started" in done.stderr
