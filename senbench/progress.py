@@ -3,7 +3,8 @@ frames/s, latest evaluation return), and a line per finished cell that stays in 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,15 +23,28 @@ if TYPE_CHECKING:
     from senbench.cell import CellOutcome
 
 
-class GridProgress:
-    """Shows progress on ``console``; with ``None`` it shows nothing (library use, tests)."""
+LOG_EVERY_S = 300.0
+"""Without a terminal (a batch job's log), a running cell's line is printed this often."""
 
-    def __init__(self, console: Console | None):
+
+class GridProgress:
+    """Shows progress on ``console``; with ``None`` it shows nothing (library use, tests).
+
+    On a terminal the running cells' lines are live; into a file or pipe (a batch job's log,
+    ``nohup``) live lines are not drawn, so each running cell prints a plain line every
+    ``log_every_s`` seconds instead, and an hour-long cell does not leave the log silent."""
+
+    def __init__(self, console: Console | None, log_every_s: float = LOG_EVERY_S,
+                 clock: Callable[[], float] = time.monotonic):
         self.console = console
         self._progress: Progress | None = None
         self._grid = None
         self._cells: dict[str, int] = {}
         self._done: set[str] = set()
+        self._labels: dict[str, tuple[str, int]] = {}
+        self._logged: dict[str, float] = {}
+        self._log_every_s = log_every_s
+        self._clock = clock
 
     @contextmanager
     def grid(self, total: int, skipped: int) -> Iterator[None]:
@@ -67,6 +81,8 @@ class GridProgress:
             return
         self._cells[cell_id] = self._progress.add_task(f"  {escape(label)}", total=budget, rate="",
                                                        last_eval="")
+        self._labels[cell_id] = (label, budget)
+        self._logged[cell_id] = self._clock()
 
     def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None,
                eval_step: int | None = None) -> None:
@@ -76,6 +92,14 @@ class GridProgress:
         shown = "" if last_eval is None else f"eval {last_eval:.1f}"
         self._progress.update(task, completed=steps, rate=f"{rate:,.0f} frames/s",
                               last_eval=shown)
+        now = self._clock()
+        if not self._progress.console.is_terminal and \
+                now - self._logged.get(cell_id, now) >= self._log_every_s:
+            self._logged[cell_id] = now
+            label, budget = self._labels[cell_id]
+            self._progress.console.print(
+                f"  {escape(label)}: {steps:,} of {budget:,} frames, {rate:,.0f} frames/s"
+                + (f", {shown}" if shown else ""), highlight=False)
 
     def copied(self, label: str, source: Path, final_eval: float | None) -> None:
         """A cell copied from another suite's results (``run --reuse``), not run."""
@@ -88,6 +112,8 @@ class GridProgress:
 
     def finished(self, outcome: CellOutcome) -> None:
         self._done.add(outcome.cell_id)
+        self._labels.pop(outcome.cell_id, None)
+        self._logged.pop(outcome.cell_id, None)
         if self._progress is None:
             return
         task = self._cells.pop(outcome.cell_id, None)
