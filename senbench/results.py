@@ -125,16 +125,23 @@ def current_cells(suite_dir: Path) -> set[str] | None:
         return None
 
 
-def finished_status(path: Path) -> str | None:
-    """The status recorded in a cell file, or None if there is no readable file."""
+def cell_row(path: Path, columns: list[str]) -> dict[str, Any] | None:
+    """``columns`` of a cell file's summary row (``kind = "cell"``), or None if there is no
+    readable file or no such row."""
     try:
-        table = pq.read_table(path, columns=["kind", "status"])
+        table = pq.read_table(path, columns=["kind", *columns])
     except (FileNotFoundError, pa.ArrowInvalid, OSError):
         return None
-    for kind, status in zip(table["kind"].to_pylist(), table["status"].to_pylist(), strict=True):
-        if kind == "cell":
-            return status
+    for row in table.to_pylist():
+        if row["kind"] == "cell":
+            return row
     return None
+
+
+def finished_status(path: Path) -> str | None:
+    """The status recorded in a cell file, or None if there is no readable file."""
+    row = cell_row(path, ["status"])
+    return None if row is None else row["status"]
 
 
 def remove_stray_temp_files(directory: Path) -> int:

@@ -138,17 +138,18 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
             if left is not None and left <= 0 and todo:
                 progress.warn("the time limit ran out while state encoders were trained; "
                               "they are cached, so the next run starts cells at once")
-            schedule = Schedule(todo, left, suite, results_root)
             if executor == "ray":
                 from senbench.ray_runner import run_cells
 
                 run_cells(todo, directory, info, progress, summary, address=address,
                           workers=workers, retries=retries)
-            elif workers <= 1:
-                _run_serial(schedule, directory, info, progress, summary)
             else:
-                _run_processes(todo, directory, info, workers, progress, summary, schedule)
-            summary.not_started = len(schedule.waiting) if executor == "local" else 0
+                schedule = Schedule(todo, left, suite, results_root)
+                if workers <= 1:
+                    _run_serial(schedule, directory, info, progress, summary)
+                else:
+                    _run_processes(todo, directory, info, workers, progress, summary, schedule)
+                summary.not_started = len(schedule.waiting)
         except KeyboardInterrupt:
             summary.interrupted = True
     return summary

@@ -53,17 +53,18 @@ class Schedule:
         self.waiting = deque(todo)
         self.limit_s = limit_s
         self.deadline = None if limit_s is None else time.monotonic() + limit_s
-        self._walls: dict[tuple[str, str, str], list[float]] = {}
+        self._walls: dict[tuple[str, str, str], tuple[float, int]] = {}
+        """Per combination: the finished cells' total wall seconds, and their count."""
         self._running: Counter[tuple[str, str, str]] = Counter()
         if limit_s is not None and suite is not None and results_root is not None:
             for combo in suite_status(suite, results_root):
                 if combo.ok:
-                    self._walls[(combo.env, combo.method, combo.variant)] = [
-                        combo.ok_wall_s / combo.ok] * combo.ok
+                    self._walls[(combo.env, combo.method, combo.variant)] = (combo.ok_wall_s,
+                                                                             combo.ok)
 
     def expected_s(self, cell: Cell) -> float | None:
-        walls = self._walls.get(_key(cell))
-        return sum(walls) / len(walls) if walls else None
+        total, count = self._walls.get(_key(cell), (0.0, 0))
+        return total / count if count else None
 
     def left_s(self) -> float:
         return float("inf") if self.deadline is None else self.deadline - time.monotonic()
@@ -87,4 +88,5 @@ class Schedule:
     def finished(self, cell: Cell, status: str, wall_s: float) -> None:
         self._running[_key(cell)] -= 1
         if status == "ok":
-            self._walls.setdefault(_key(cell), []).append(wall_s)
+            total, count = self._walls.get(_key(cell), (0.0, 0))
+            self._walls[_key(cell)] = (total + wall_s, count + 1)

@@ -6,10 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import pyarrow as pa
-import pyarrow.parquet as pq
-
-from senbench.results import cell_path, cells_dir
+from senbench.results import cell_path, cell_row, cells_dir
 from senbench.suite import Suite
 
 
@@ -41,19 +38,6 @@ class Combination:
         return None if self.mean_wall_s is None else self.to_run * self.mean_wall_s
 
 
-def _cell_record(path: Path) -> tuple[str, float] | None:
-    """A cell file's status and wall seconds, or None if there is no readable file."""
-    try:
-        table = pq.read_table(path, columns=["kind", "status", "cell_wall_s"])
-    except (FileNotFoundError, pa.ArrowInvalid, OSError):
-        return None
-    for kind, status, wall in zip(*(table[c].to_pylist() for c in
-                                    ("kind", "status", "cell_wall_s")), strict=True):
-        if kind == "cell":
-            return status, wall or 0.0
-    return None
-
-
 def suite_status(suite: Suite, results_root: str | Path) -> list[Combination]:
     """Per combination, in the suite's order: its cells, how many finished or failed (a
     failed cell runs again), and the finished cells' wall time."""
@@ -63,13 +47,12 @@ def suite_status(suite: Suite, results_root: str | Path) -> list[Combination]:
         key = (cell.env, cell.method, cell.variant)
         combo = combos.setdefault(key, Combination(*key))
         combo.cells += 1
-        record = _cell_record(cell_path(directory, cell.id))
-        if record is None:
+        row = cell_row(cell_path(directory, cell.id), ["status", "cell_wall_s"])
+        if row is None:
             continue
-        status, wall = record
-        if status == "ok":
+        if row["status"] == "ok":
             combo.ok += 1
-            combo.ok_wall_s += wall
+            combo.ok_wall_s += row["cell_wall_s"] or 0.0
         else:
             combo.failed += 1
     return list(combos.values())
