@@ -43,6 +43,11 @@ def user_errors(command):
     return wrapper
 
 
+Threshold = Annotated[list[str] | None, typer.Option(
+    help="Frames to threshold (and the plots' dashed line) at this return instead of the "
+         "env's: -150 (results of one env) or mountaincar=-150 (repeat for several envs).")]
+
+
 def _load(suite_file: Path):
     from senbench.plugins import registries
     from senbench.suite import load_suite
@@ -74,46 +79,15 @@ def status(
 ) -> None:
     """How many cells of a suite have finished, failed or are still to run, and the cell
     time left, at the mean of the finished cells of each env, method and variant."""
-    from senbench.report import label
     from senbench.results import cells_dir
-    from senbench.status import duration, suite_status
+    from senbench.status import render, suite_status
 
     suite = _load(suite_file)
-    combos = suite_status(suite, results)
     if not cells_dir(results, suite.name).is_dir():
         err.print(f"[yellow]warning:[/] {escape(str(cells_dir(results, suite.name)))} does not "
                   "exist: nothing of this suite has run under this results root (--results)",
                   highlight=False)
-    table = Table(title=f"suite '{suite.name}' under {results}")
-    for name in ("env", "method", "cells", "finished", "failed", "to run", "mean cell",
-                 "cell time left"):
-        table.add_column(name, justify="left" if name in ("env", "method") else "right")
-    for c in combos:
-        mean, left = c.mean_wall_s, c.left_s
-        table.add_row(escape(c.env), escape(label(c.method, c.variant)),
-                      str(c.cells), str(c.ok), str(c.failed) if c.failed else "",
-                      str(c.to_run) if c.to_run else "",
-                      "" if mean is None else duration(mean),
-                      "?" if left is None else ("" if not left else duration(left)))
-    out.print(table)
-    known = sum(c.left_s for c in combos if c.left_s is not None)
-    unknown = sum(c.to_run for c in combos if c.left_s is None)
-    finished = sum(c.ok for c in combos)
-    total = sum(c.cells for c in combos)
-    line = f"{finished} of {total} cells finished"
-    if finished < total:
-        if known or not unknown:
-            line += f"; cell time left ≈ {duration(known)}"
-            if workers > 1:
-                line += f" (≈ {duration(known / workers)} on {workers} workers)"
-            if unknown:
-                line += f", plus {unknown} cells"
-        else:
-            line += f"; {unknown} cells left"
-        if unknown:
-            line += " of methods with none finished yet (their time is not known)"
-        line += ". Cells running now count as to run"
-    out.print(line + ".")
+    render(suite_status(suite, results), f"suite '{suite.name}' under {results}", workers, out)
 
 
 @app.command()
@@ -212,9 +186,7 @@ def report(
     results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
-    threshold: Annotated[list[str] | None, typer.Option(
-        help="Frames to threshold at this return instead of the env's: -150 (results of "
-             "one env) or mountaincar=-150 (repeat for several envs).")] = None,
+    threshold: Threshold = None,
 ) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
     from senbench.report import parse_thresholds, render, summarize, with_thresholds
@@ -237,9 +209,7 @@ def compare(
         help="The results folder holding methods A and B.")] = None,
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
-    threshold: Annotated[list[str] | None, typer.Option(
-        help="Frames to threshold at this return instead of the env's: -150 (results of "
-             "one env) or mountaincar=-150 (repeat for several envs).")] = None,
+    threshold: Threshold = None,
 ) -> None:
     """A against B per env: IQM with CIs and the probability that A does better."""
     from senbench.compare import pairs_across_folders, pairs_in_one_folder, render
@@ -471,9 +441,7 @@ def plot_curves_command(
         "--out", help="PNG file to write (default: RESULTS_DIR/curves.png).")] = None,
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
-    threshold: Annotated[list[str] | None, typer.Option(
-        help="Draw this return as the threshold instead of the env's: -150 (results of "
-             "one env) or mountaincar=-150 (repeat for several envs).")] = None,
+    threshold: Threshold = None,
 ) -> None:
     """Evaluation return against frames, mean and 95% CI band over seeds per method (the
     paper's Figs. 4, 5, 8 and 9)."""

@@ -6,6 +6,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from senbench.report import label
 from senbench.results import cell_path, cell_row, cells_dir
 from senbench.suite import Suite
 
@@ -63,3 +68,37 @@ def duration(seconds: float) -> str:
         return f"{seconds:.0f} s"
     minutes = round(seconds / 60)
     return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
+
+
+def render(combos: list[Combination], title: str, workers: int, console: Console) -> None:
+    """The table of ``combos`` and a line with the cells and the cell time left."""
+    table = Table(title=title)
+    for name in ("env", "method", "cells", "finished", "failed", "to run", "mean cell",
+                 "cell time left"):
+        table.add_column(name, justify="left" if name in ("env", "method") else "right")
+    for c in combos:
+        mean, left = c.mean_wall_s, c.left_s
+        table.add_row(escape(c.env), escape(label(c.method, c.variant)),
+                      str(c.cells), str(c.ok), str(c.failed) if c.failed else "",
+                      str(c.to_run) if c.to_run else "",
+                      "" if mean is None else duration(mean),
+                      "?" if left is None else ("" if not left else duration(left)))
+    console.print(table)
+    known = sum(c.left_s for c in combos if c.left_s is not None)
+    unknown = sum(c.to_run for c in combos if c.left_s is None)
+    finished = sum(c.ok for c in combos)
+    total = sum(c.cells for c in combos)
+    line = f"{finished} of {total} cells finished"
+    if finished < total:
+        if known or not unknown:
+            line += f"; cell time left ≈ {duration(known)}"
+            if workers > 1:
+                line += f" (≈ {duration(known / workers)} on {workers} workers)"
+            if unknown:
+                line += f", plus {unknown} cells"
+        else:
+            line += f"; {unknown} cells left"
+        if unknown:
+            line += " of methods with none finished yet (their time is not known)"
+        line += ". Cells running now count as to run"
+    console.print(line + ".")

@@ -8,11 +8,16 @@ from senbench.cell import CellOutcome
 from senbench.progress import GridProgress
 
 
+def progress_into(log, terminal, clock):
+    """Progress printing into ``log``, as a terminal or a file, on a settable clock."""
+    return GridProgress(Console(file=log, force_terminal=terminal, width=200),
+                        log_every_s=60, clock=lambda: clock[0])
+
+
 def test_without_a_terminal_a_running_cell_prints_a_line_every_interval():
     log = io.StringIO()
     clock = [0.0]
-    progress = GridProgress(Console(file=log, force_terminal=False, width=200),
-                            log_every_s=60, clock=lambda: clock[0])
+    progress = progress_into(log, False, clock)
     with progress.grid(total=2, skipped=0):
         progress.started("c1", "mountaincar/dqn-pixels[x=1] seed 0", 1_000_000)
         for second, steps in ((30, 7_500), (61, 15_000), (90, 22_500), (125, 30_000)):
@@ -31,8 +36,7 @@ def test_without_a_terminal_a_running_cell_prints_a_line_every_interval():
 def test_on_a_terminal_the_live_line_is_enough():
     log = io.StringIO()
     clock = [0.0]
-    progress = GridProgress(Console(file=log, force_terminal=True, width=200),
-                            log_every_s=60, clock=lambda: clock[0])
+    progress = progress_into(log, True, clock)
     with progress.grid(total=1, skipped=0):
         progress.started("c1", "cell", 1000)
         clock[0] = 500
