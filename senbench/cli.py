@@ -162,17 +162,24 @@ def run(
         left = summary.total - summary.skipped - summary.reused - len(summary.outcomes)
         err.print(f"interrupted: {left} cells not run; run the same command again to resume")
         raise typer.Exit(130)
+    if summary.elsewhere:
+        err.print(f"{len(summary.elsewhere)} cells were left to another run of this suite that "
+                  "held them" + (f"; {summary.elsewhere_unfinished} of them had not finished "
+                                 "when this run ended (run the same command again later for "
+                                 "any it does not finish)" if summary.elsewhere_unfinished
+                                 else ", and it finished them"))
     if summary.not_started:
         err.print(f"time limit {time_limit}: {summary.not_started} cells not started (the "
                   "limit was reached, or no waiting cell was expected to end within it at the "
                   "mean of the finished cells of its env, method and variant); run the same "
                   "command again to go on")
-        raise typer.Exit(1 if summary.failed else EXIT_TIME_LIMIT)
+    if summary.not_started or summary.elsewhere_unfinished:
+        raise typer.Exit(1 if summary.failed else EXIT_NOT_DONE)
     if summary.failed:
         raise typer.Exit(1)
 
 
-EXIT_TIME_LIMIT = 75
+EXIT_NOT_DONE = 75
 """sysexits' EX_TEMPFAIL: not done, run again later (a batch job's requeue)."""
 
 

@@ -150,13 +150,13 @@ def remove_stray_temp_files(directory: Path) -> int:
     for tmp in directory.glob(".*.tmp"):
         parts = tmp.name.split(".")
         pid = int(parts[2]) if len(parts) == 4 and parts[2].isdigit() else None
-        if pid is None or pid == os.getpid() or not _alive(pid):
+        if pid is None or pid == os.getpid() or not process_alive(pid):
             tmp.unlink(missing_ok=True)
             removed += 1
     return removed
 
 
-def _alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
     """A killed writer can linger as a zombie until its parent reaps it: that is dead."""
     try:
         return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE

@@ -27,6 +27,7 @@ import psutil
 
 from senbench import plugins
 from senbench.cell import CellOutcome, RunInfo, record_lost_cell, run_cell
+from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
 from senbench.progress import GridProgress
 from senbench.results import (
@@ -51,6 +52,11 @@ class RunSummary:
     """Cells copied from another suite's results (``reuse``), not run."""
     not_started: int = 0
     """Cells a time limit left for a later run: none was expected to fit in the time left."""
+    elsewhere: list[str] = field(default_factory=list)
+    """Cells passed over because another run of the suite held them, or finished them
+    after this run made its list (see :mod:`senbench.claims`)."""
+    elsewhere_unfinished: int = 0
+    """Of those, the cells not finished when this run ended: still running there, or failed."""
 
     @property
     def failed(self) -> list[CellOutcome]:
@@ -91,7 +97,8 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
     method and variant names, is copied from there instead (see :mod:`senbench.reuse`).
     With ``time_limit_s``, a cell starts only if it is expected to end within that many
     seconds of the call (see :mod:`senbench.schedule`); ``summary.not_started`` counts the
-    cells left for a later run.
+    cells left for a later run. A cell that another run of the suite holds is passed over
+    (``summary.elsewhere``), so several runs can share one grid (see :mod:`senbench.claims`).
 
     ``executor="local"``: serially, or ``workers`` processes. ``"ray"``: as Ray tasks, on the
     cluster at ``address`` or on a local instance of ``workers`` CPUs (default: all usable)
@@ -130,6 +137,7 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         progress.warn(f"{workers} workers × {threads} torch threads per cell > "
                       f"{usable_cores()} cores: cells will compete for them")
     info = RunInfo.gather(Path(results_root) / "encoders")
+    claims = CellClaims(directory, force)
     with progress.grid(len(cells), summary.skipped):
         try:
             todo = _copy_reused(todo, directory, info, found, progress, summary)
@@ -141,17 +149,24 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
             if executor == "ray":
                 from senbench.ray_runner import run_cells
 
+                summary.elsewhere = [c.id for c in todo if not claims.take(c.id)]
+                todo = [c for c in todo if c.id not in summary.elsewhere]
                 run_cells(todo, directory, info, progress, summary, address=address,
                           workers=workers, retries=retries)
             else:
-                schedule = Schedule(todo, left, suite, results_root)
+                schedule = Schedule(todo, left, suite, results_root, claims)
                 if workers <= 1:
                     _run_serial(schedule, directory, info, progress, summary)
                 else:
                     _run_processes(todo, directory, info, workers, progress, summary, schedule)
                 summary.not_started = len(schedule.waiting)
+                summary.elsewhere = schedule.elsewhere
         except KeyboardInterrupt:
             summary.interrupted = True
+        finally:
+            claims.release_all()
+    summary.elsewhere_unfinished = len(pending_cells(
+        [c for c in cells if c.id in set(summary.elsewhere)], directory, force=False))
     return summary
 
 

@@ -1,5 +1,6 @@
 """Which waiting cell starts next: in the suite's order, or, under a time limit, the first
-that is expected to finish before it (``run --time-limit``).
+that is expected to finish before it (``run --time-limit``); with claims, never one that
+another run of the suite holds (see :mod:`senbench.claims`).
 
 A cell's expected time is the mean wall time of the finished cells of its env, method and
 variant: those already in the results folder, and those that finish during the run. A cell
@@ -18,6 +19,7 @@ import time
 from collections import Counter, deque
 from pathlib import Path
 
+from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
 from senbench.status import suite_status
 from senbench.suite import Cell, Suite
@@ -49,8 +51,12 @@ class Schedule:
     """The waiting cells; ``next`` hands out the one to start, or None."""
 
     def __init__(self, todo: list[Cell], limit_s: float | None = None,
-                 suite: Suite | None = None, results_root: str | Path | None = None):
+                 suite: Suite | None = None, results_root: str | Path | None = None,
+                 claims: CellClaims | None = None):
         self.waiting = deque(todo)
+        self.claims = claims
+        self.elsewhere: list[str] = []
+        """Cells passed over: another run holds them, or finished them meanwhile."""
         self.limit_s = limit_s
         self.deadline = None if limit_s is None else time.monotonic() + limit_s
         self._walls: dict[tuple[str, str, str], tuple[float, int]] = {}
@@ -70,6 +76,15 @@ class Schedule:
         return float("inf") if self.deadline is None else self.deadline - time.monotonic()
 
     def next(self) -> Cell | None:
+        """The cell to start now, locked for this run if the schedule has ``claims``."""
+        while (cell := self._pick()) is not None:
+            if self.claims is None or self.claims.take(cell.id):
+                self._running[_key(cell)] += 1
+                return cell
+            self.elsewhere.append(cell.id)
+        return None
+
+    def _pick(self) -> Cell | None:
         if self.deadline is None:
             return self.waiting.popleft() if self.waiting else None
         left = self.left_s()
@@ -81,12 +96,14 @@ class Schedule:
                 continue  # one cell of an unknown combination at a time
             if expected is None or expected * MARGIN <= left:
                 self.waiting.remove(cell)
-                self._running[_key(cell)] += 1
                 return cell
         return None
 
     def finished(self, cell: Cell, status: str, wall_s: float) -> None:
+        """Call once the cell's file is written: its lock is let go here."""
         self._running[_key(cell)] -= 1
+        if self.claims is not None:
+            self.claims.release(cell.id)
         if status == "ok":
             total, count = self._walls.get(_key(cell), (0.0, 0))
             self._walls[_key(cell)] = (total + wall_s, count + 1)

@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from senbench.claims import running_cells
 from senbench.report import label
 from senbench.results import cell_path, cell_row, cells_dir
 from senbench.suite import Suite
@@ -25,6 +26,8 @@ class Combination:
     cells: int = 0
     ok: int = 0
     failed: int = 0
+    running: int = 0
+    """Cells a run holds now (their lock names a live holder), counted in ``to_run`` too."""
     ok_wall_s: float = 0.0
 
     @property
@@ -44,14 +47,16 @@ class Combination:
 
 
 def suite_status(suite: Suite, results_root: str | Path) -> list[Combination]:
-    """Per combination, in the suite's order: its cells, how many finished or failed (a
-    failed cell runs again), and the finished cells' wall time."""
+    """Per combination, in the suite's order: its cells, how many finished, failed (a
+    failed cell runs again) or are running, and the finished cells' wall time."""
     directory = cells_dir(results_root, suite.name)
+    running = running_cells(directory) if directory.is_dir() else set()
     combos: dict[tuple[str, str, str], Combination] = {}
     for cell in suite.cells:
         key = (cell.env, cell.method, cell.variant)
         combo = combos.setdefault(key, Combination(*key))
         combo.cells += 1
+        combo.running += cell.id in running
         row = cell_row(cell_path(directory, cell.id), ["status", "cell_wall_s"])
         if row is None:
             continue
@@ -73,14 +78,14 @@ def duration(seconds: float) -> str:
 def render(combos: list[Combination], title: str, workers: int, console: Console) -> None:
     """The table of ``combos`` and a line with the cells and the cell time left."""
     table = Table(title=title)
-    for name in ("env", "method", "cells", "finished", "failed", "to run", "mean cell",
-                 "cell time left"):
+    for name in ("env", "method", "cells", "finished", "failed", "to run", "running",
+                 "mean cell", "cell time left"):
         table.add_column(name, justify="left" if name in ("env", "method") else "right")
     for c in combos:
         mean, left = c.mean_wall_s, c.left_s
         table.add_row(escape(c.env), escape(label(c.method, c.variant)),
                       str(c.cells), str(c.ok), str(c.failed) if c.failed else "",
-                      str(c.to_run) if c.to_run else "",
+                      str(c.to_run) if c.to_run else "", str(c.running) if c.running else "",
                       "" if mean is None else duration(mean),
                       "?" if left is None else ("" if not left else duration(left)))
     console.print(table)
@@ -100,5 +105,5 @@ def render(combos: list[Combination], title: str, workers: int, console: Console
             line += f"; {unknown} cells left"
         if unknown:
             line += " of methods with none finished yet (their time is not known)"
-        line += ". Cells running now count as to run"
+        line += ". Running cells count as to run"
     console.print(line + ".")
