@@ -194,14 +194,26 @@ def report(
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
     threshold: Threshold = None,
+    at: Annotated[list[int] | None, typer.Option(
+        min=0, help="Also the mean evaluation return at this frame, over seeds (repeat for "
+                    "several; a seed's last evaluation at or before it).")] = None,
 ) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
-    from senbench.report import parse_thresholds, render, summarize, with_thresholds
+    from senbench.report import (
+        parse_thresholds,
+        render,
+        render_at,
+        returns_at,
+        summarize,
+        with_thresholds,
+    )
     from senbench.results import read_results
 
     thresholds = parse_thresholds(threshold or [])
     results = with_thresholds(read_results(results_dir, include_stale=all_cells), thresholds)
     render(summarize(results), out)
+    if at:
+        render_at(returns_at(results, sorted(set(at))), out)
     if results.attrs.get("stale"):
         err.print(f"left out {results.attrs['stale']} cells of earlier versions of the suite "
                   "(--all includes them)")

@@ -159,3 +159,56 @@ def render(summary: pd.DataFrame, console: Console) -> None:
                           _cell(row, "final"), steps, _cell(row, "auc"),
                           f"{row.seeds_ok} / {failed}")
         console.print(table)
+
+
+def returns_at(results: pd.DataFrame, frames: list[int]) -> pd.DataFrame:
+    """Per env × method × variant and frame: the mean and std over finished seeds of each
+    seed's evaluation return at that frame (its last evaluation at or before it; none for a
+    frame before its first evaluation or past its last), and how many seeds had one."""
+    ok_cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
+    keep = set(zip(ok_cells["suite"], ok_cells["cell_id"], strict=True))
+    evals = results[results["kind"] == "eval"].sort_values("step")
+    rows = []
+    keys = ["suite", "env", "method", "variant"]
+    for key, group in evals.groupby(keys, sort=True):
+        curves = [curve for (suite, cell_id), curve in group.groupby(["suite", "cell_id"])
+                  if (suite, cell_id) in keep]
+        for frame in frames:
+            values = np.array([_at(curve, frame) for curve in curves], dtype=float)
+            values = values[~np.isnan(values)]
+            rows.append(dict(zip(keys, key, strict=True), frame=frame, seeds=len(values),
+                             mean=float(values.mean()) if len(values) else np.nan,
+                             std=float(values.std()) if len(values) else np.nan))
+    return pd.DataFrame(rows, columns=[*keys, "frame", "seeds", "mean", "std"])
+
+
+def _at(curve: pd.DataFrame, frame: int) -> float:
+    steps = curve["step"].to_numpy()
+    if not len(steps) or frame < steps[0] or frame > steps[-1]:
+        return float("nan")
+    return float(curve["return"].to_numpy()[np.searchsorted(steps, frame, side="right") - 1])
+
+
+def render_at(table: pd.DataFrame, console: Console) -> None:
+    """``returns_at``'s table: a row per method, a column per frame."""
+    several = table["suite"].nunique() > 1
+    for (suite, env), rows in table.groupby(["suite", "env"], sort=True):
+        frames = sorted(rows["frame"].unique())
+        where = f"{suite} / {env}" if several else env
+        out = Table(title=f"{where}: evaluation return at frames",
+                    caption="evaluation return at each frame (a seed's last evaluation at or "
+                    "before it): mean ± std over finished seeds; (n) when only n seeds had one")
+        out.add_column("method", no_wrap=True)
+        for frame in frames:
+            out.add_column(f"{frame:,}", justify="right")
+        seeds = rows.groupby(["method", "variant"])["seeds"].max()
+        for (method, variant), by_method in rows.groupby(["method", "variant"], sort=True):
+            cells = []
+            for frame in frames:
+                row = by_method[by_method["frame"] == frame].iloc[0]
+                text = _pm(row["mean"], row["std"])
+                if 0 < row["seeds"] < seeds[(method, variant)]:
+                    text += f" ({row['seeds']})"
+                cells.append(text)
+            out.add_row(escape(label(method, variant)), *cells)
+        console.print(out)

@@ -6,7 +6,7 @@ import pytest
 
 from senbench.errors import ResultsError
 from senbench.plugins import registries
-from senbench.report import parse_thresholds, summarize, with_thresholds
+from senbench.report import parse_thresholds, returns_at, summarize, with_thresholds
 from senbench.results import read_results
 from senbench.runner import run_suite
 from senbench.suite import load_suite
@@ -37,12 +37,40 @@ def test_summary_counts_finished_and_failed_seeds(write_suite, tmp_path, test_ag
 def test_report_cli_prints_a_table_per_env(write_suite, tmp_path):
     text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
     run_suite(load_suite(write_suite(text), registries()), tmp_path)
-    done = subprocess.run([sys.executable, "-m", "senbench", "report", str(tmp_path / "rep")],
+    done = subprocess.run([sys.executable, "-m", "senbench", "report", str(tmp_path / "rep"),
+                           "--at", "500", "--at", "0"],
                           capture_output=True, text=True, env={"COLUMNS": "200",
                                                                "PATH": "/usr/bin:/bin"})
     assert done.returncode == 0, done.stderr
     assert "mountaincar: evaluation return; threshold -110" in done.stdout
     assert "sarsa-state" in done.stdout and "2 / 0" in done.stdout
+    at = done.stdout[done.stdout.index("mountaincar: evaluation return at frames"):]
+    header = next(line for line in at.splitlines() if "method" in line)
+    assert [c.strip() for c in header.split("┃")[1:-1]] == ["method", "0", "500"]
+    assert "-200.0 ± 0.0" in at  # untrained at frame 0: never reaches the flag
+
+
+def test_returns_at_frames_are_each_seeds_last_evaluation_up_to_there():
+    def cell(cell_id, status, curve):
+        rows = [{"suite": "s", "cell_id": cell_id, "env": "e", "method": "m", "variant": "",
+                 "kind": "cell", "step": None, "return": None, "status": status}]
+        return rows + [{"suite": "s", "cell_id": cell_id, "env": "e", "method": "m",
+                        "variant": "", "kind": "eval", "step": step, "return": value,
+                        "status": None} for step, value in curve]
+
+    results = pd.DataFrame(
+        cell("a", "ok", [(0, -10.0), (100, -5.0), (200, -1.0)])
+        + cell("b", "ok", [(0, -20.0), (100, -7.0), (200, -3.0)])
+        + cell("c", "ok", [(100, -9.0), (200, -9.0)])  # its first evaluation at 100
+        + cell("d", "failed", [(0, 500.0), (100, 500.0)]))  # a failed seed does not count
+    table = returns_at(results, [0, 150, 200, 250]).set_index("frame")
+    assert table.loc[0, "seeds"] == 2 and table.loc[0, "mean"] == -15.0
+    assert table.loc[0, "std"] == 5.0
+    # at 150: the evaluations at 100, -5, -7 and -9
+    assert table.loc[150, "seeds"] == 3 and table.loc[150, "mean"] == pytest.approx(-7.0)
+    assert table.loc[150, "std"] == pytest.approx((8 / 3) ** 0.5)
+    assert table.loc[200, "mean"] == pytest.approx(-13 / 3)
+    assert table.loc[250, "seeds"] == 0 and pd.isna(table.loc[250, "mean"])  # past the end
 
 
 def test_report_on_a_folder_without_results_says_so(tmp_path):
