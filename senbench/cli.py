@@ -163,11 +163,12 @@ def run(
         err.print(f"interrupted: {left} cells not run; run the same command again to resume")
         raise typer.Exit(130)
     if summary.elsewhere:
-        err.print(f"{len(summary.elsewhere)} cells were left to another run of this suite that "
-                  "held them" + (f"; {summary.elsewhere_unfinished} of them had not finished "
-                                 "when this run ended (run the same command again later for "
-                                 "any it does not finish)" if summary.elsewhere_unfinished
-                                 else ", and it finished them"))
+        err.print(f"{len(summary.elsewhere)} cells were left to another run of this suite"
+                  + (f"; {summary.elsewhere_running} are still running there"
+                     if summary.elsewhere_running else "")
+                  + (f"; {summary.elsewhere_unfinished} did not finish there (failed, or "
+                     "that run was stopped): run the same command again to run them"
+                     if summary.elsewhere_unfinished else ""))
     if summary.not_started:
         err.print(f"time limit {time_limit}: {summary.not_started} cells not started (the "
                   "limit was reached, or no waiting cell was expected to end within it at the "

@@ -19,6 +19,7 @@ import os
 import platform
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -48,8 +49,9 @@ def import_ray() -> Any:
 
 def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,
               summary: Any, address: str | None = None, workers: int | None = None,
-              retries: int = 2) -> None:
-    """Run ``todo`` on Ray and record each cell's outcome in ``summary``.
+              retries: int = 2, written: Callable[[str], None] = lambda cell_id: None) -> None:
+    """Run ``todo`` on Ray and record each cell's outcome in ``summary``; ``written`` is
+    called with a cell's id once its file is written.
 
     ``address``: an existing cluster (``auto``, ``ray://host:port``); None starts a local
     instance for this run, with ``workers`` CPUs (default: this machine's), and stops it."""
@@ -81,14 +83,14 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
             raise SenbenchError(f"cells of this suite need {needs} CPUs (their threads) but the "
                                 f"largest Ray node has {largest:g}: lower the suite's threads, "
                                 "or add a larger node")
-        _run(ray, todo, directory, info, progress, summary, retries)
+        _run(ray, todo, directory, info, progress, summary, retries, written)
     finally:
         if started_here:
             ray.shutdown()
 
 
 def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,
-         summary: Any, retries: int) -> None:
+         summary: Any, retries: int, written: Callable[[str], None]) -> None:
     sink = ray.remote(num_cpus=0, max_restarts=-1)(_ProgressSink).remote()
     task = ray.remote(_ray_cell)
     shipped: dict[str, Any] = {}
@@ -112,6 +114,7 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: G
             for ref in done:
                 cell = pending.pop(ref)
                 outcome = _collect(ray, ref, cell, directory, info, retries)
+                written(cell.id)
                 if cell.id not in running:
                     progress.started(cell.id, cell.label, cell.config["budget"])
                 running.discard(cell.id)

@@ -27,7 +27,7 @@ import psutil
 
 from senbench import plugins
 from senbench.cell import CellOutcome, RunInfo, record_lost_cell, run_cell
-from senbench.claims import CellClaims
+from senbench.claims import CellClaims, running_cells
 from senbench.errors import SenbenchError
 from senbench.progress import GridProgress
 from senbench.results import (
@@ -55,8 +55,11 @@ class RunSummary:
     elsewhere: list[str] = field(default_factory=list)
     """Cells passed over because another run of the suite held them, or finished them
     after this run made its list (see :mod:`senbench.claims`)."""
+    elsewhere_running: int = 0
+    """Of those, the cells another run still held when this run ended."""
     elsewhere_unfinished: int = 0
-    """Of those, the cells not finished when this run ended: still running there, or failed."""
+    """Of those, the cells neither finished nor held when this run ended: the other run
+    failed them or was stopped, so they are left to the next run."""
 
     @property
     def failed(self) -> list[CellOutcome]:
@@ -152,7 +155,7 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
                 summary.elsewhere = [c.id for c in todo if not claims.take(c.id)]
                 todo = [c for c in todo if c.id not in summary.elsewhere]
                 run_cells(todo, directory, info, progress, summary, address=address,
-                          workers=workers, retries=retries)
+                          workers=workers, retries=retries, written=claims.release)
             else:
                 schedule = Schedule(todo, left, suite, results_root, claims)
                 if workers <= 1:
@@ -165,8 +168,12 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
             summary.interrupted = True
         finally:
             claims.release_all()
-    summary.elsewhere_unfinished = len(pending_cells(
-        [c for c in cells if c.id in set(summary.elsewhere)], directory, force=False))
+    running = running_cells(directory) if summary.elsewhere else set()
+    for cell_id in summary.elsewhere:
+        if cell_id in running:
+            summary.elsewhere_running += 1
+        elif not claims.finished_elsewhere(cell_id):
+            summary.elsewhere_unfinished += 1
     return summary
 
 

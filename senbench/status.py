@@ -27,7 +27,8 @@ class Combination:
     ok: int = 0
     failed: int = 0
     running: int = 0
-    """Cells a run holds now (their lock names a live holder), counted in ``to_run`` too."""
+    """Cells a run holds now (see :func:`senbench.claims.running_cells`): counted in
+    ``to_run`` too, or in ``ok`` when ``--force`` redoes a finished cell."""
     ok_wall_s: float = 0.0
 
     @property
