@@ -53,8 +53,8 @@ class RunSummary:
     not_started: int = 0
     """Cells a time limit left for a later run: none was expected to fit in the time left."""
     elsewhere: list[str] = field(default_factory=list)
-    """Cells passed over because another run of the suite held them, or finished them
-    after this run made its list (see :mod:`senbench.claims`)."""
+    """Cells passed over because another run of the suite held them, or wrote their files
+    since this run started (see :mod:`senbench.claims`)."""
     elsewhere_running: int = 0
     """Of those, the cells another run still held when this run ended."""
     elsewhere_unfinished: int = 0
@@ -153,7 +153,8 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
                 from senbench.ray_runner import run_cells
 
                 summary.elsewhere = [c.id for c in todo if not claims.take(c.id)]
-                todo = [c for c in todo if c.id not in summary.elsewhere]
+                passed = set(summary.elsewhere)
+                todo = [c for c in todo if c.id not in passed]
                 run_cells(todo, directory, info, progress, summary, address=address,
                           workers=workers, retries=retries, written=claims.release)
             else:

@@ -56,7 +56,7 @@ class Schedule:
         self.waiting = deque(todo)
         self.claims = claims
         self.elsewhere: list[str] = []
-        """Cells passed over: another run holds them, or finished them meanwhile."""
+        """Cells passed over: another run holds them, or wrote them since this run began."""
         self.limit_s = limit_s
         self.deadline = None if limit_s is None else time.monotonic() + limit_s
         self._walls: dict[tuple[str, str, str], tuple[float, int]] = {}
