@@ -110,6 +110,14 @@ class GridProgress:
         self._progress.console.print(f"[cyan]copied[/] {escape(label)}{final} from "
                                      f"{escape(str(source))}", highlight=False)
 
+    def passed_over(self, label: str) -> None:
+        """A cell left to another run of the suite, which holds it or has written it."""
+        if self._progress is None:
+            return
+        self._progress.advance(self._grid)
+        self._progress.console.print(f"[cyan]elsewhere[/] {escape(label)}: another run of this "
+                                     "suite holds it or has written it", highlight=False)
+
     def finished(self, outcome: CellOutcome) -> None:
         self._done.add(outcome.cell_id)
         self._labels.pop(outcome.cell_id, None)

@@ -154,11 +154,15 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
 
                 summary.elsewhere = [c.id for c in todo if not claims.take(c.id)]
                 passed = set(summary.elsewhere)
+                for cell in todo:
+                    if cell.id in passed:
+                        progress.passed_over(cell.label)
                 todo = [c for c in todo if c.id not in passed]
                 run_cells(todo, directory, info, progress, summary, address=address,
                           workers=workers, retries=retries, written=claims.release)
             else:
-                schedule = Schedule(todo, left, suite, results_root, claims)
+                schedule = Schedule(todo, left, suite, results_root, claims,
+                                    lambda cell: progress.passed_over(cell.label))
                 if workers <= 1:
                     _run_serial(schedule, directory, info, progress, summary)
                 else:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import re
 import time
 from collections import Counter, deque
+from collections.abc import Callable
 from pathlib import Path
 
 from senbench.claims import CellClaims
@@ -52,9 +53,11 @@ class Schedule:
 
     def __init__(self, todo: list[Cell], limit_s: float | None = None,
                  suite: Suite | None = None, results_root: str | Path | None = None,
-                 claims: CellClaims | None = None):
+                 claims: CellClaims | None = None,
+                 passed_over: Callable[[Cell], None] = lambda cell: None):
         self.waiting = deque(todo)
         self.claims = claims
+        self._passed_over = passed_over
         self.elsewhere: list[str] = []
         """Cells passed over: another run holds them, or wrote them since this run began."""
         self.limit_s = limit_s
@@ -82,6 +85,7 @@ class Schedule:
                 self._running[_key(cell)] += 1
                 return cell
             self.elsewhere.append(cell.id)
+            self._passed_over(cell)
         return None
 
     def _pick(self) -> Cell | None:

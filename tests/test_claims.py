@@ -145,6 +145,9 @@ def test_two_runs_of_one_suite_at_once_compute_each_cell_once(write_suite, tmp_p
     labels = {c.label for c in load_suite(suite_file, registries()).cells}
     assert ran[0] | ran[1] == labels
     assert any("left to another run" in run.stderr for run in runs)
+    passed = [line for run in runs for line in run.stderr.splitlines()
+              if line.startswith("elsewhere ")]
+    assert passed and all("another run of this suite holds it" in line for line in passed)
     cells = tmp_path / "shared" / "cells"
     assert not list(cells.glob(".*.lock"))
     assert all(finished_status(path) == "ok" for path in cells.glob("*.parquet"))
