@@ -70,6 +70,21 @@ def test_a_second_request_with_the_same_spec_loads_the_cache(tmp_path):
     assert request().id != request(fraction=0.5).id != request(seed=1).id
 
 
+def test_the_same_spec_trained_twice_gives_the_same_encoder(tmp_path):
+    # A cache lost with a machine is trained again: the cells that resume must see the
+    # encoder the finished cells saw.
+    torch.set_num_threads(1)
+    spec = request(fraction=0.5)
+    load_or_train(tmp_path / "one", spec, registries())
+    load_or_train(tmp_path / "two", spec, registries())
+    weights = [torch.load(cache_dir(tmp_path / where, complete(spec, registries())) / "model.pt",
+                          weights_only=True) for where in ("one", "two")]
+    state, other = weights[0]["model"], weights[1]["model"]
+    assert state.keys() == other.keys()
+    assert all(torch.equal(state[k], other[k]) for k in state)
+    assert torch.equal(weights[0]["mean"], weights[1]["mean"])
+
+
 def test_checkpoints_load_with_weights_only_and_refuse_code(tmp_path):
     torch.set_num_threads(1)
     load_or_train(tmp_path, request(), registries())
