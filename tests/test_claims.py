@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import pytest
+from suites_for_tests import SLOW
 
 from senbench import claims as claims_module
 from senbench.claims import CellClaims, lock_path, running_cells
@@ -14,17 +15,6 @@ from senbench.progress import GridProgress
 from senbench.results import cell_path, finished_status, write_cell
 from senbench.runner import run_suite
 from senbench.suite import load_suite
-
-SLOW = """\
-name: shared
-envs:
-  mountaincar: {}
-methods:
-  slow-state: {agent: slow, hyperparams: {sleep_s: 0.002}}
-seeds: 4
-budget: 400
-eval: {every: 200, episodes: 1}
-"""
 
 
 def test_a_held_cell_is_refused_until_its_holder_lets_go(tmp_path):
@@ -104,7 +94,7 @@ def test_an_interrupted_run_lets_go_of_every_cell(write_suite, tmp_path, test_ag
 
     summary = run_suite(suite, tmp_path, progress=Interrupting(None))
     assert summary.interrupted
-    cells = tmp_path / "shared" / "cells"
+    cells = tmp_path / "slow" / "cells"
     assert not list(cells.glob(".*.lock"))
     claims = CellClaims(cells)
     assert all(claims.take(c.id) for c in suite.cells)
@@ -148,7 +138,7 @@ def test_two_runs_of_one_suite_at_once_compute_each_cell_once(write_suite, tmp_p
     passed = [line for run in runs for line in run.stderr.splitlines()
               if line.startswith("elsewhere ")]
     assert passed and all("another run of this suite holds it" in line for line in passed)
-    cells = tmp_path / "shared" / "cells"
+    cells = tmp_path / "slow" / "cells"
     assert not list(cells.glob(".*.lock"))
     assert all(finished_status(path) == "ok" for path in cells.glob("*.parquet"))
 
@@ -158,7 +148,7 @@ def test_the_cli_passes_over_a_held_cell_and_status_shows_it_running(
     suite_file = write_suite(SLOW)
     suite = load_suite(suite_file, registries())
     held = suite.cells[1]
-    cells = tmp_path / "shared" / "cells"
+    cells = tmp_path / "slow" / "cells"
     cells.mkdir(parents=True)
     claims = CellClaims(cells)  # another run, in this process, holds one cell
     assert claims.take(held.id)
@@ -170,11 +160,11 @@ def test_the_cli_passes_over_a_held_cell_and_status_shows_it_running(
         assert status.returncode == 0, status.stdout + status.stderr
         row = next(line for line in status.stdout.splitlines() if "slow-state" in line)
         cells_, finished, failed, to_run, running = [c.strip() for c in row.split("│")][3:8]
-        assert (cells_, finished, failed, to_run, running) == ("4", "0", "", "4", "1")
+        assert (cells_, finished, failed, to_run, running) == ("6", "0", "", "6", "1")
         done = subprocess.run([*command, "run", str(suite_file), *where], env=cli_env,
                               capture_output=True, text=True, timeout=300)
         assert done.returncode == 0, done.stdout + done.stderr  # the holder will finish it
-        assert "3 finished" in done.stdout
+        assert "5 finished" in done.stdout
         assert "1 cells were left to another run of this suite; 1 are still running there" \
             in " ".join(done.stderr.split())
         assert finished_status(cell_path(cells, held.id)) is None
@@ -183,13 +173,13 @@ def test_the_cli_passes_over_a_held_cell_and_status_shows_it_running(
     again = subprocess.run([*command, "run", str(suite_file), *where], env=cli_env,
                            capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stdout + again.stderr
-    assert "1 finished" in again.stdout and "3 already done" in again.stdout
+    assert "1 finished" in again.stdout and "5 already done" in again.stdout
 
 
 def test_a_cell_another_run_left_unfinished_makes_the_exit_75(write_suite, tmp_path,
                                                               test_agents, monkeypatch):
     suite = load_suite(write_suite(SLOW), registries())
-    cells = tmp_path / "shared" / "cells"
+    cells = tmp_path / "slow" / "cells"
     cells.mkdir(parents=True)
     refused = suite.cells[2].id
     real_take = CellClaims.take
