@@ -9,6 +9,9 @@ import pandas as pd
 
 from senbench.errors import ResultsError
 
+DASHES = ["-", (0, (6, 3)), (0, (1, 2)), (0, (6, 2, 1, 2))]
+"""Line styles of the methods on a curves plot, in turn."""
+
 
 def find_encoders(paths: list[Path], env: str | None) -> list[tuple[dict, pd.DataFrame]]:
     """(spec, traces) of every trained encoder under ``paths`` (encoder folders, or a cache
@@ -112,10 +115,12 @@ def plot_curves(results: pd.DataFrame, out: Path, title: str) -> list[str]:
     cells = results[results["kind"] == "cell"]
     fig, axes = plt.subplots(1, len(curves), figsize=(7.5 * len(curves), 4.8), squeeze=False)
     for ax, (env, methods) in zip(axes[0], curves.items(), strict=True):
-        for name, table in methods.items():
+        for i, (name, table) in enumerate(methods.items()):
             steps, values = table.columns.to_numpy(dtype=float), table.to_numpy(dtype=float)
             mean = values.mean(axis=0)
-            (line,) = ax.plot(steps, mean, linewidth=1.8,
+            # a dash pattern per method: curves that coincide (two agents stuck at -1,000)
+            # still both show
+            (line,) = ax.plot(steps, mean, linewidth=1.8, linestyle=DASHES[i % len(DASHES)],
                               label=f"{name} ({values.shape[0]} seeds)")
             low, high = mean_ci(values)
             ax.fill_between(steps, low, high, color=line.get_color(), alpha=0.2, linewidth=0)
