@@ -130,7 +130,7 @@ def run(
     """Run every cell of a suite that has not finished yet (resumable).
 
     --method, --env, --seed and --variant run a part of the grid; the rest stays as it is."""
-    from senbench.progress import GridProgress
+    from senbench.progress import GridProgress, print_summary
     from senbench.runner import EXECUTORS, run_suite
     from senbench.schedule import parse_duration
 
@@ -146,42 +146,10 @@ def run(
                         progress=GridProgress(err), executor=executor, address=address,
                         retries=retries, cells=cells, reuse=reuse or [],
                         time_limit_s=limit_s)
-    folder = results / suite.name
-    picked = f" (picked from {len(suite.cells)})" if len(cells) < len(suite.cells) else ""
-    out.print(
-        f"suite '{suite.name}': {summary.ok} finished, {len(summary.failed)} failed, "
-        f"{summary.skipped} already done, "
-        + (f"{summary.reused} copied from --reuse, " if summary.reused else "")
-        + f"of {summary.total} cells{picked} → {folder}"
-    )
-    for outcome in summary.failed:
-        last = (outcome.error or "").strip().splitlines()[-1:] or [""]
-        err.print(f"[red]failed[/] {escape(outcome.label)} ({outcome.cell_id}): "
-                  f"{escape(last[0])}", highlight=False)
-    if summary.interrupted:
-        left = summary.total - summary.skipped - summary.reused - len(summary.outcomes)
-        err.print(f"interrupted: {left} cells not run; run the same command again to resume")
-        raise typer.Exit(130)
-    if summary.elsewhere:
-        err.print(f"{len(summary.elsewhere)} cells were left to another run of this suite"
-                  + (f"; {summary.elsewhere_running} are still running there"
-                     if summary.elsewhere_running else "")
-                  + (f"; {summary.elsewhere_unfinished} did not finish there (failed, or "
-                     "that run was stopped): run the same command again to run them"
-                     if summary.elsewhere_unfinished else ""))
-    if summary.not_started:
-        err.print(f"time limit {time_limit}: {summary.not_started} cells not started (the "
-                  "limit was reached, or no waiting cell was expected to end within it at the "
-                  "mean of the finished cells of its env, method and variant); run the same "
-                  "command again to go on")
-    if summary.not_started or summary.elsewhere_unfinished:
-        raise typer.Exit(1 if summary.failed else EXIT_NOT_DONE)
-    if summary.failed:
-        raise typer.Exit(1)
-
-
-EXIT_NOT_DONE = 75
-"""sysexits' EX_TEMPFAIL: not done, run again later (a batch job's requeue)."""
+    print_summary(summary, suite.name, results / suite.name, len(suite.cells), time_limit,
+                  out, err)
+    if summary.exit_code:
+        raise typer.Exit(summary.exit_code)
 
 
 def _stop_like_ctrl_c(signum, frame) -> None:

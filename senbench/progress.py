@@ -21,6 +21,7 @@ from rich.progress import (
 
 if TYPE_CHECKING:
     from senbench.cell import CellOutcome
+    from senbench.runner import RunSummary
 
 
 LOG_EVERY_S = 300.0
@@ -137,3 +138,35 @@ class GridProgress:
             self._progress.console.print(
                 f"[red]failed[/] {escape(outcome.label)}: {escape(first_line[0])}",
                 highlight=False)
+
+
+def print_summary(summary: RunSummary, suite_name: str, folder: Path, suite_cells: int,
+                  time_limit: str | None, out: Console, err: Console) -> None:
+    """What a run did, on ``out``; its failures and what is left to do, on ``err``."""
+    picked = f" (picked from {suite_cells})" if summary.total < suite_cells else ""
+    out.print(
+        f"suite '{suite_name}': {summary.ok} finished, {len(summary.failed)} failed, "
+        f"{summary.skipped} already done, "
+        + (f"{summary.reused} copied from --reuse, " if summary.reused else "")
+        + f"of {summary.total} cells{picked} → {folder}"
+    )
+    for outcome in summary.failed:
+        last = (outcome.error or "").strip().splitlines()[-1:] or [""]
+        err.print(f"[red]failed[/] {escape(outcome.label)} ({outcome.cell_id}): "
+                  f"{escape(last[0])}", highlight=False)
+    if summary.interrupted:
+        left = summary.total - summary.skipped - summary.reused - len(summary.outcomes)
+        err.print(f"interrupted: {left} cells not run; run the same command again to resume")
+        return
+    if summary.elsewhere:
+        err.print(f"{len(summary.elsewhere)} cells were left to another run of this suite"
+                  + (f"; {summary.elsewhere_running} are still running there"
+                     if summary.elsewhere_running else "")
+                  + (f"; {summary.elsewhere_unfinished} did not finish there (failed, or "
+                     "that run was stopped): run the same command again to run them"
+                     if summary.elsewhere_unfinished else ""))
+    if summary.not_started:
+        err.print(f"time limit {time_limit}: {summary.not_started} cells not started (the "
+                  "limit was reached, or no waiting cell was expected to end within it at the "
+                  "mean of the finished cells of its env, method and variant); run the same "
+                  "command again to go on")

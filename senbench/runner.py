@@ -41,6 +41,9 @@ from senbench.reuse import copy_cell, curve_key, finished_cells
 from senbench.schedule import Schedule
 from senbench.suite import Cell, Suite
 
+EXIT_NOT_DONE = 75
+"""sysexits' EX_TEMPFAIL: not done, run again later (a batch job's requeue)."""
+
 
 @dataclass
 class RunSummary:
@@ -68,6 +71,15 @@ class RunSummary:
     @property
     def ok(self) -> int:
         return sum(o.status == "ok" for o in self.outcomes)
+
+    @property
+    def exit_code(self) -> int:
+        """130 interrupted; 1 a cell failed; 75 cells left for a later run; else 0."""
+        if self.interrupted:
+            return 130
+        if self.failed:
+            return 1
+        return EXIT_NOT_DONE if self.not_started or self.elsewhere_unfinished else 0
 
 
 def usable_cores() -> int:
