@@ -83,10 +83,11 @@ class CellClaims:
         return (fresh or not self.force) and finished_status(path) == "ok"
 
     def release(self, cell_id: str) -> None:
-        fd = self._held.get(cell_id)
+        # Forgotten first: an interrupt between the two leaks a descriptor (the kernel drops
+        # its lock when the run exits), never closes one twice (by then maybe another file's)
+        fd = self._held.pop(cell_id, None)
         if fd is not None:
             self._let_go(lock_path(self.directory, cell_id), fd)
-            del self._held[cell_id]
 
     def release_all(self) -> None:
         for cell_id in list(self._held):

@@ -7,7 +7,8 @@ no shared disk, and resume is the local runner's (finished files are skipped bef
 task is submitted). Encoders are trained once by the driver and put in Ray's object store;
 a node writes the files into a cache of its own the first time a cell there needs them.
 A task whose worker dies (killed, out of memory, a node lost) is retried ``retries`` times by
-Ray, then the cell is recorded as failed with why. Ctrl-C cancels the tasks in flight.
+Ray, then the cell is recorded as failed with why. Ctrl-C stops the tasks in flight: it
+cancels them on a cluster, and stops a local instance started for the run with them.
 
 Ray is an optional extra (``pip install 'senbench[ray]'``); it is imported only here.
 """
@@ -83,14 +84,18 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
             raise SenbenchError(f"cells of this suite need {needs} CPUs (their threads) but the "
                                 f"largest Ray node has {largest:g}: lower the suite's threads, "
                                 "or add a larger node")
-        _run(ray, todo, directory, info, progress, summary, retries, written)
+        # Ray can abort the driver when a task is cancelled just as its result arrives
+        # (a check in its task manager fails, seen in 2.60), so Ctrl-C cancels tasks one by
+        # one only on a cluster; an instance of this run's own is stopped whole instead
+        _run(ray, todo, directory, info, progress, summary, retries, written,
+             cancel=not started_here)
     finally:
         if started_here:
             ray.shutdown()
 
 
 def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: GridProgress,
-         summary: Any, retries: int, written: Callable[[str], None]) -> None:
+         summary: Any, retries: int, written: Callable[[str], None], cancel: bool) -> None:
     sink = ray.remote(num_cpus=0, max_restarts=-1)(_ProgressSink).remote()
     task = ray.remote(_ray_cell)
     shipped: dict[str, Any] = {}
@@ -122,7 +127,7 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: G
                 summary.outcomes.append(outcome)
                 progress.finished(outcome)
     except BaseException:
-        for ref in pending:
+        for ref in pending if cancel else ():
             ray.cancel(ref, force=True)
         remove_stray_temp_files(directory)
         raise

@@ -9,6 +9,7 @@ import types
 from pathlib import Path
 
 import pandas as pd
+import psutil
 import pytest
 from suites_for_tests import SEN_SARSA, SLOW
 
@@ -86,7 +87,7 @@ def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path
 
 
 @pytest.mark.parametrize("stop", ["ctrl-c", "sigterm"])
-def test_stopping_a_ray_run_cancels_its_tasks_leaving_only_finished_cells(tmp_path, cli_env,
+def test_stopping_a_ray_run_stops_its_tasks_leaving_only_finished_cells(tmp_path, cli_env,
                                                                           stop):
     (tmp_path / "slow.yaml").write_text(SLOW.replace("sleep_s: 0.002", "sleep_s: 0.004"))
     cells = tmp_path / "results" / "slow" / "cells"
@@ -99,6 +100,7 @@ def test_stopping_a_ray_run_cancels_its_tasks_leaving_only_finished_cells(tmp_pa
     while not list(cells.glob("*.parquet")):
         assert process.poll() is None and time.time() < deadline, process.communicate()
         time.sleep(0.05)
+    ray_processes = psutil.Process(process.pid).children(recursive=True)
     if stop == "ctrl-c":
         os.killpg(process.pid, signal.SIGINT)  # what Ctrl-C sends to the foreground group
     else:
@@ -110,6 +112,9 @@ def test_stopping_a_ray_run_cancels_its_tasks_leaving_only_finished_cells(tmp_pa
     assert 1 <= len(files) < 6
     assert all(finished_status(f) == "ok" for f in files)
     assert not list(cells.glob(".*.tmp"))
+    # the local instance went with the run: no worker is left computing a cell
+    _, alive = psutil.wait_procs(ray_processes, timeout=20)
+    assert not alive, [p.cmdline() for p in alive]
 
 
 @pytest.fixture(scope="module")
