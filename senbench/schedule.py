@@ -3,7 +3,8 @@ that is expected to finish before it (``run --time-limit``); with claims, never 
 another run of the suite holds (see :mod:`senbench.claims`).
 
 A cell's expected time is the mean wall time of the finished cells of its env, method and
-variant: those already in the results folder, and those that finish during the run. A cell
+variant: those already in the results folder, and those that finish during the run, in this
+run or in another run of the suite (its cells are passed over, but their times count). A cell
 of a combination with none finished yet has no expected time: it starts while time is left,
 but only one cell of that combination at a time, until one finishes and gives the time (so
 eight workers do not start eight hour-long cells of an unknown method at the deadline's
@@ -22,6 +23,7 @@ from pathlib import Path
 
 from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
+from senbench.results import cell_path, cell_row
 from senbench.status import suite_status
 from senbench.suite import Cell, Suite
 
@@ -85,8 +87,20 @@ class Schedule:
                 self._running[_key(cell)] += 1
                 return cell
             self.elsewhere.append(cell.id)
+            self._learn_from_elsewhere(cell)
             self._passed_over(cell)
         return None
+
+    def _learn_from_elsewhere(self, cell: Cell) -> None:
+        """A cell another run finished since this one started gives its combination's time,
+        as one of this run's would: so that two runs under a time limit do not each start a
+        cell of a combination only the other has timed."""
+        if self.deadline is None or not self.claims.finished_elsewhere(cell.id):
+            return
+        row = cell_row(cell_path(self.claims.directory, cell.id), ["status", "cell_wall_s"])
+        if row and row["status"] == "ok" and row["cell_wall_s"]:
+            total, count = self._walls.get(_key(cell), (0.0, 0))
+            self._walls[_key(cell)] = (total + row["cell_wall_s"], count + 1)
 
     def _pick(self) -> Cell | None:
         if self.deadline is None:

@@ -7,9 +7,10 @@ import time
 import pytest
 
 from senbench import schedule as schedule_module
+from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
 from senbench.plugins import registries
-from senbench.results import finished_status
+from senbench.results import finished_status, write_cell
 from senbench.runner import run_suite
 from senbench.schedule import Schedule, parse_duration
 from senbench.suite import load_suite
@@ -63,6 +64,21 @@ def test_a_cell_that_would_not_fit_is_passed_over_for_one_that_does(
     assert list(plan.waiting) == slow[1:]
     unlimited = Schedule(slow + fast)
     assert [unlimited.next() for _ in range(6)] == slow + fast and unlimited.next() is None
+
+
+def test_a_cell_another_run_finished_gives_its_combination_time(
+        write_suite, test_agents, tmp_path, monkeypatch):
+    suite = load_suite(write_suite(MIXED), registries())
+    slow = [c for c in suite.cells if c.method == "slow-state"]
+    cells = tmp_path / "cells"
+    cells.mkdir()
+    monkeypatch.setattr(schedule_module.time, "monotonic", lambda: 1000.0)
+    plan = Schedule(slow, limit_s=100, claims=CellClaims(cells))
+    # another run of the suite finished the first cell since this run started, in 95 s
+    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell", "status": "ok",
+                                    "cell_wall_s": 95.0}])
+    assert plan.next() is None  # its time counts: 95 s × 1.1 does not fit in 100 s
+    assert plan.elsewhere == [slow[0].id] and list(plan.waiting) == slow[1:]
 
 
 @pytest.mark.parametrize("workers", [1, 2])
