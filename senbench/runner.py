@@ -155,7 +155,7 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
     claims = CellClaims(directory, force)
     with progress.grid(len(cells), summary.skipped):
         try:
-            todo = _copy_reused(todo, directory, info, found, progress, summary)
+            todo = _copy_reused(todo, directory, info, found, progress, summary, claims)
             todo = _prepare_encoders(todo, directory, info, progress, summary)
             left = None if time_limit_s is None else time_limit_s - (time.monotonic() - started)
             if left is not None and left <= 0 and todo:
@@ -195,12 +195,19 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
 
 
 def _copy_reused(todo: list[Cell], directory: Path, info: RunInfo, found: dict[str, Path],
-                 progress: GridProgress, summary: RunSummary) -> list[Cell]:
-    """Copy the cells ``found`` holds (``--reuse``); the cells still to run."""
+                 progress: GridProgress, summary: RunSummary, claims: CellClaims) -> list[Cell]:
+    """Copy the cells ``found`` holds (``--reuse``), each under its lock, as a run would
+    compute it; the cells still to run (a cell another run holds among them: the schedule
+    passes it over)."""
     left, other_code = [], 0
     for cell in todo:
         source = found.get(curve_key(cell.config))
-        copy = copy_cell(cell, source, directory, info.encoder_cache) if source else None
+        copy = None
+        if source is not None and claims.take(cell.id):  # held elsewhere: left to schedule
+            try:
+                copy = copy_cell(cell, source, directory, info.encoder_cache)
+            finally:
+                claims.release(cell.id)
         if copy is None:
             left.append(cell)
             continue

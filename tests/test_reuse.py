@@ -10,6 +10,7 @@ import pytest
 from curves import curves_of
 from suites_for_tests import SEN_SARSA
 
+from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
 from senbench.plugins import registries
 from senbench.results import SCHEMA, current_cells, finished_status, read_results
@@ -74,6 +75,25 @@ def test_a_cell_the_same_but_for_its_names_is_copied_and_equals_running_it(
     ran = run_suite(sweep, tmp_path / "ran")
     assert ran.reused == 0 and ran.ok == 4
     assert curves_of(tmp_path / "results" / "sweep").equals(curves_of(tmp_path / "ran" / "sweep"))
+
+
+def test_a_cell_another_run_holds_is_neither_copied_nor_run(write_suite, tmp_path):
+    main = load(write_suite, MAIN, "main.yaml")
+    sweep = load(write_suite, SWEEP, "sweep.yaml")
+    run_suite(main, tmp_path / "results")
+    held, free = [c for c in sweep.cells if c.variant == "hyperparams.alpha=0.5"]
+    cells = tmp_path / "results" / "sweep" / "cells"
+    cells.mkdir(parents=True)
+    other = CellClaims(cells)  # another run of the sweep, computing or copying it
+    assert other.take(held.id)
+    try:
+        summary = run_suite(sweep, tmp_path / "results", reuse=[tmp_path / "results" / "main"],
+                            cells=[held, free])
+    finally:
+        other.release_all()
+    assert summary.reused == 1 and summary.elsewhere == [held.id]
+    assert finished_status(cells / f"{free.id}.parquet") == "ok"
+    assert not (cells / f"{held.id}.parquet").exists()
 
 
 def test_a_cell_that_differs_in_anything_else_is_run(write_suite, tmp_path):
