@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import socket
 from pathlib import Path
 from typing import Any
 
@@ -80,7 +82,7 @@ def write_table(directory: Path, cell_id: str, table: pa.Table) -> Path:
         raise ValueError(f"cell {cell_id}: its table does not have the results schema")
     directory.mkdir(parents=True, exist_ok=True)
     final = cell_path(directory, cell_id)
-    tmp = directory / f".{cell_id}.{os.getpid()}.tmp"
+    tmp = directory / f".{cell_id}.{writer_tag()}.tmp"
     try:
         with open(tmp, "wb") as handle:
             pq.write_table(table, handle)
@@ -144,12 +146,24 @@ def finished_status(path: Path) -> str | None:
     return None if row is None else row["status"]
 
 
+def writer_tag() -> str:
+    """``<pid>-<host>`` in a temp file's name: whose it is, on which machine."""
+    return f"{os.getpid()}-{re.sub(r'[^A-Za-z0-9-]', '_', socket.gethostname())}"
+
+
+_TEMP = re.compile(r"\.[^.]+\.(\d+)(?:-([A-Za-z0-9_-]*))?\.tmp")
+
+
 def remove_stray_temp_files(directory: Path) -> int:
-    """Delete temp files left by writers that are no longer alive (a killed run)."""
-    removed = 0
+    """Delete the cell temp files left by writers that are no longer alive (a killed run).
+    A file named after another host's writer is left alone: this host cannot see whether
+    that writer is alive, and several machines may share the folder."""
+    removed, here = 0, writer_tag().partition("-")[2]
     for tmp in directory.glob(".*.tmp"):
-        parts = tmp.name.split(".")
-        pid = int(parts[2]) if len(parts) == 4 and parts[2].isdigit() else None
+        match = _TEMP.fullmatch(tmp.name)
+        if match is not None and match[2] is not None and match[2] != here:
+            continue
+        pid = int(match[1]) if match is not None else None
         if pid is None or pid == os.getpid() or not process_alive(pid):
             tmp.unlink(missing_ok=True)
             removed += 1

@@ -246,6 +246,21 @@ def test_a_temp_file_of_a_killed_writer_not_yet_reaped_is_removed(tmp_path):
         writer.wait()
 
 
+def test_only_this_hosts_dead_writers_temp_files_are_removed(tmp_path):
+    from senbench.results import remove_stray_temp_files, writer_tag
+
+    writer = subprocess.Popen(["sleep", "0"])
+    writer.wait()  # a dead writer's pid
+    host = writer_tag().partition("-")[2]
+    here = tmp_path / f".abcdef.{writer.pid}-{host}.tmp"
+    there = tmp_path / f".abcdef.{writer.pid}-other-node_7.tmp"  # on a machine sharing it
+    mine = tmp_path / f".fedcba.{writer_tag()}.tmp"  # this process's: a stray of its own
+    for path in (here, there, mine):
+        path.write_text("half a file")
+    assert remove_stray_temp_files(tmp_path) == 2
+    assert [p.name for p in tmp_path.iterdir()] == [there.name]
+
+
 def test_without_ray_the_ray_executor_is_a_clear_error_and_nothing_is_written(
         write_suite, tmp_path, monkeypatch):
     suite = load_suite(write_suite(SARSA), registries())
