@@ -88,7 +88,7 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: GridPr
         # (a check in its task manager fails, seen in 2.60), so Ctrl-C cancels tasks one by
         # one only on a cluster; an instance of this run's own is stopped whole instead
         _run(ray, todo, directory, info, progress, summary, retries, written,
-             cancel=not started_here)
+             cancel=not (started_here and address is None))
     finally:
         if started_here:
             ray.shutdown()

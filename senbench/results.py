@@ -156,15 +156,16 @@ _TEMP = re.compile(r"\.[^.]+\.(\d+)(?:-([A-Za-z0-9_-]*))?\.tmp")
 
 def remove_stray_temp_files(directory: Path) -> int:
     """Delete the cell temp files left by writers that are no longer alive (a killed run).
-    A file named after another host's writer is left alone: this host cannot see whether
-    that writer is alive, and several machines may share the folder."""
+    A file named after another host's writer is left alone (this host cannot see whether
+    that writer is alive, and several machines may share the folder), and so is one not
+    named as a cell's temp file."""
     removed, here = 0, writer_tag().partition("-")[2]
     for tmp in directory.glob(".*.tmp"):
         match = _TEMP.fullmatch(tmp.name)
-        if match is not None and match[2] is not None and match[2] != here:
-            continue
-        pid = int(match[1]) if match is not None else None
-        if pid is None or pid == os.getpid() or not process_alive(pid):
+        if match is None or (match[2] is not None and match[2] != here):
+            continue  # not a cell's temp file, or another host's
+        pid = int(match[1])
+        if pid == os.getpid() or not process_alive(pid):
             tmp.unlink(missing_ok=True)
             removed += 1
     return removed

@@ -72,6 +72,9 @@ class Schedule:
                 if combo.ok:
                     self._walls[(combo.env, combo.method, combo.variant)] = (combo.ok_wall_s,
                                                                              combo.ok)
+        self._counted = set() if claims is None or limit_s is None else {
+            c.id for c in todo if cell_path(claims.directory, c.id).exists()}
+        """Waiting cells whose files were there already: ``_walls`` holds their times."""
 
     def expected_s(self, cell: Cell) -> float | None:
         total, count = self._walls.get(_key(cell), (0.0, 0))
@@ -92,10 +95,13 @@ class Schedule:
         return None
 
     def _learn_from_elsewhere(self, cell: Cell) -> None:
-        """A cell another run finished since this one started gives its combination's time,
-        as one of this run's would: so that two runs under a time limit do not each start a
-        cell of a combination only the other has timed."""
+        """A cell another run finished before this run came to it gives its combination's
+        time, as one of this run's would: so that a run under a time limit does not start a
+        cell of a combination only another run has timed as if it had no time. (A cell
+        still held elsewhere when this run comes to it teaches nothing: it is passed over.)"""
         if self.deadline is None or not self.claims.finished_elsewhere(cell.id):
+            return
+        if cell.id in self._counted:
             return
         row = cell_row(cell_path(self.claims.directory, cell.id), ["status", "cell_wall_s"])
         if row and row["status"] == "ok" and row["cell_wall_s"]:

@@ -10,7 +10,7 @@ from senbench import schedule as schedule_module
 from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
 from senbench.plugins import registries
-from senbench.results import finished_status, write_cell
+from senbench.results import cells_dir, finished_status, write_cell
 from senbench.runner import run_suite
 from senbench.schedule import Schedule, parse_duration
 from senbench.suite import load_suite
@@ -79,6 +79,24 @@ def test_a_cell_another_run_finished_gives_its_combination_time(
                                     "cell_wall_s": 95.0}])
     assert plan.next() is None  # its time counts: 95 s × 1.1 does not fit in 100 s
     assert plan.elsewhere == [slow[0].id] and list(plan.waiting) == slow[1:]
+
+
+def test_a_cell_finished_before_the_schedule_was_made_counts_once(
+        write_suite, test_agents, tmp_path, monkeypatch):
+    suite = load_suite(write_suite(MIXED), registries())
+    slow = [c for c in suite.cells if c.method == "slow-state"]
+    cells = cells_dir(tmp_path, suite.name)
+    cells.mkdir(parents=True)
+    for cell, wall in ((slow[0], 10.0), (slow[1], 95.0)):
+        write_cell(cells, cell.id, [{"cell_id": cell.id, "kind": "cell", "status": "ok",
+                                     "cell_wall_s": wall}])
+    # slow[1] was to run, but another run finished it while this one trained its encoders
+    plan = Schedule(slow[1:], limit_s=1000, suite=suite, results_root=tmp_path,
+                    claims=CellClaims(cells))
+    assert plan.expected_s(slow[2]) == 52.5
+    assert plan.next() is slow[2] and plan.elsewhere == [slow[1].id]
+    assert plan.expected_s(slow[2]) == 52.5  # not (10 + 95 + 95) / 3
+    plan.claims.release_all()
 
 
 @pytest.mark.parametrize("workers", [1, 2])
