@@ -105,8 +105,11 @@ class Schedule:
             return
         row = cell_row(cell_path(self.claims.directory, cell.id), ["status", "cell_wall_s"])
         if row and row["status"] == "ok" and row["cell_wall_s"]:
-            total, count = self._walls.get(_key(cell), (0.0, 0))
-            self._walls[_key(cell)] = (total + row["cell_wall_s"], count + 1)
+            self._add_wall(cell, row["cell_wall_s"])
+
+    def _add_wall(self, cell: Cell, wall_s: float) -> None:
+        total, count = self._walls.get(_key(cell), (0.0, 0))
+        self._walls[_key(cell)] = (total + wall_s, count + 1)
 
     def _pick(self) -> Cell | None:
         if self.deadline is None:
@@ -129,5 +132,4 @@ class Schedule:
         if self.claims is not None:
             self.claims.release(cell.id)
         if status == "ok":
-            total, count = self._walls.get(_key(cell), (0.0, 0))
-            self._walls[_key(cell)] = (total + wall_s, count + 1)
+            self._add_wall(cell, wall_s)
