@@ -258,6 +258,8 @@ def tune(
         run_study,
         storage_for,
         target,
+        trial_counts,
+        trials_table,
     )
 
     check_objective(objective)  # before a study is stored
@@ -276,9 +278,13 @@ def tune(
         sampler=chosen_sampler, pruner=chosen_pruner,
         results_root=results, workers=processes, regs=regs,
         log=lambda message: err.print(escape(message), highlight=False))
-    _print_trials(done, name, objective)
+    table = trials_table(done, name, objective)
+    if table is None:
+        err.print(f"study '{name}': no trial finished yet ({trial_counts(done)})")
+    else:
+        out.print(table)
     if export is not None:
-        if not _completed(done):
+        if table is None:
             err.print(f"study '{name}' has no finished trial yet: nothing to export; run more "
                       "trials")
             raise typer.Exit(1)
@@ -287,37 +293,6 @@ def tune(
         export.write_text(f"# senbench tune: study '{name}', trial {best.number}, "
                           f"{objective} {best.value:,.2f} over {seeds} seeds\n{text}")
         out.print(f"best trial written to {export}")
-
-
-def _completed(done) -> bool:
-    import optuna
-
-    return any(t.state == optuna.trial.TrialState.COMPLETE for t in done.trials)
-
-
-def _print_trials(done, name: str, objective: str) -> None:
-    import optuna
-
-    states = optuna.trial.TrialState
-    complete = [t for t in done.trials if t.state == states.COMPLETE]
-    counts = {s.name.lower(): sum(t.state == s for t in done.trials)
-              for s in (states.COMPLETE, states.PRUNED, states.FAIL, states.RUNNING)}
-    if not complete:
-        err.print(f"study '{name}': no trial finished yet ({counts})")
-        return
-    reverse = done.direction == optuna.study.StudyDirection.MAXIMIZE
-    best = sorted(complete, key=lambda t: t.value, reverse=reverse)[:5]
-    table = Table(title=f"study '{name}': best trials by {objective}; "
-                        + ", ".join(f"{n} {k}" for k, n in counts.items()))
-    table.add_column("trial", justify="right")
-    table.add_column(objective, justify="right")
-    for key in best[0].params:
-        table.add_column(key, justify="right")
-    for t in best:
-        table.add_row(str(t.number), f"{t.value:,.2f}",
-                      *(f"{t.params[k]:.4g}" if isinstance(t.params[k], float)
-                        else str(t.params[k]) for k in best[0].params))
-    out.print(table)
 
 
 @app.command()

@@ -355,3 +355,36 @@ def best_block(study: Any, tgt: Target) -> dict[str, Any]:
 def _plain(values: dict[str, Any]) -> dict[str, Any]:
     """numpy scalars → Python numbers, so that safe_dump writes plain YAML."""
     return {k: (v.item() if hasattr(v, "item") else v) for k, v in values.items()}
+
+
+def trial_counts(study: Any) -> dict[str, int]:
+    """How many of the study's trials finished, were pruned, failed or are running."""
+    import optuna
+
+    states = optuna.trial.TrialState
+    return {s.name.lower(): sum(t.state == s for t in study.trials)
+            for s in (states.COMPLETE, states.PRUNED, states.FAIL, states.RUNNING)}
+
+
+def trials_table(study: Any, name: str, objective: str, top: int = 5) -> Any:
+    """The study's ``top`` finished trials, best first, with their hyperparameters, as a rich
+    Table titled with the trial counts; None while no trial has finished."""
+    import optuna
+    from rich.table import Table
+
+    complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    if not complete:
+        return None
+    reverse = study.direction == optuna.study.StudyDirection.MAXIMIZE
+    best = sorted(complete, key=lambda t: t.value, reverse=reverse)[:top]
+    table = Table(title=f"study '{name}': best trials by {objective}; "
+                        + ", ".join(f"{n} {k}" for k, n in trial_counts(study).items()))
+    table.add_column("trial", justify="right")
+    table.add_column(objective, justify="right")
+    for key in best[0].params:
+        table.add_column(key, justify="right")
+    for t in best:
+        table.add_row(str(t.number), f"{t.value:,.2f}",
+                      *(f"{t.params[k]:.4g}" if isinstance(t.params[k], float)
+                        else str(t.params[k]) for k in best[0].params))
+    return table

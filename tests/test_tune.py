@@ -197,3 +197,36 @@ def test_a_bad_option_is_refused_before_any_storage_is_made(tmp_path):
         done = tune(tmp_path, "--trials", "1", *bad)
         assert done.returncode == 2 and bad[1] in done.stderr
     assert not (tmp_path / "results").exists()
+
+
+def test_the_trials_table_lists_the_best_finished_trials_first_with_the_counts():
+    study = optuna.create_study(direction="maximize")
+    assert tuning.trials_table(study, "s", "auc") is None  # nothing finished: no table
+    for value in (-300.0, -100.0, -200.0):
+        study.enqueue_trial({"alpha": 0.5})
+        study.optimize(lambda trial, v=value: trial.suggest_float("alpha", 0, 1) and v,
+                       n_trials=1)
+    pruned = study.ask({"alpha": optuna.distributions.FloatDistribution(0, 1)})
+    study.tell(pruned, state=optuna.trial.TrialState.PRUNED)
+    table = tuning.trials_table(study, "s", "auc", top=2)
+    assert table.title == "study 's': best trials by auc; 3 complete, 1 pruned, 0 fail, 0 running"
+    assert [c.header for c in table.columns] == ["trial", "auc", "alpha"]
+    assert list(table.columns[0].cells) == ["1", "2"]  # -100 then -200; -300 is cut
+    assert list(table.columns[1].cells) == ["-100.00", "-200.00"]
+    minimize = optuna.create_study(direction="minimize")
+    minimize.add_trials(study.trials[:3])
+    assert list(tuning.trials_table(minimize, "m", "auc").columns[0].cells) == ["0", "2", "1"]
+
+
+def test_exporting_a_study_with_no_finished_trial_fails_and_writes_nothing(tmp_path):
+    (tmp_path / "s.yaml").write_text(SUITE)
+    (tmp_path / "results" / "tiny").mkdir(parents=True)
+    study = optuna.create_study(study_name="sarsa-state-mountaincar-auc", direction="maximize",
+                                storage=f"sqlite:///{tmp_path / 'results' / 'tiny' / 'tune.db'}")
+    pruned = study.ask()
+    study.tell(pruned, state=optuna.trial.TrialState.PRUNED)  # the study already holds 1
+    done = tune(tmp_path, "--trials", "1", "--export", str(tmp_path / "best.yaml"))
+    assert done.returncode == 1
+    assert "no trial finished yet ({'complete': 0, 'pruned': 1" in done.stderr
+    assert "nothing to export" in done.stderr
+    assert not (tmp_path / "best.yaml").exists()
