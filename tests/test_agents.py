@@ -1,3 +1,5 @@
+import tempfile
+
 import numpy as np
 import pytest
 from curves import curves_of
@@ -61,6 +63,15 @@ def test_ppo_stops_exactly_at_the_budget_and_reports_episodes():
     assert np.all(np.diff(log.steps[1:]) == 2)  # one call per vectorised step of 2 envs
     assert all(length == 200 for _, _, length in log.episodes)
     assert len(log.episodes) == 2 * (1024 // 2 // 200)
+
+
+@pytest.mark.parametrize("agent", ["ppo", "dqn"])
+def test_sb3_agents_leave_no_log_folder_behind(agent, tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # SB3's default log folder
+    settings = ({"n_envs": 1, "n_steps": 64, "batch_size": 32, "n_epochs": 1} if agent == "ppo"
+                else {"learning_starts": 20, "buffer_size": 100, "train_freq": 4})
+    learn(agent, "pendulum" if agent == "ppo" else "mountaincar", 100, **settings)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_recorder_evaluates_at_zero_every_interval_and_the_budget():

@@ -25,6 +25,7 @@ def learn_with_recorder(model, budget: int, recorder: Recorder) -> None:
     """model.learn, reporting frames and finished episodes to ``recorder`` after every
     vectorised step and stopping exactly when it says the budget is spent."""
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.logger import Logger
 
     class Report(BaseCallback):
         def _on_step(self) -> bool:
@@ -34,6 +35,9 @@ def learn_with_recorder(model, budget: int, recorder: Recorder) -> None:
                     recorder.episode(self.num_timesteps, float(episode["r"]), int(episode["l"]))
             return recorder.step(self.num_timesteps)
 
+    # A logger that writes nothing: left to itself, learn() makes a /tmp/SB3-<timestamp>
+    # folder per model, a cell or a test. The recorder is the cell's only log.
+    model.set_logger(Logger(folder=None, output_formats=[]))
     if recorder.step(0):
         # total_timesteps = budget: SB3's schedules (DQN's exploration) span the budget; the
         # callback stops collection at the budget itself, mid-rollout if need be.
