@@ -146,9 +146,12 @@ def finished_status(path: Path) -> str | None:
     return None if row is None else row["status"]
 
 
-def writer_tag() -> str:
-    """``<pid>-<host>`` in a temp file's name: whose it is, on which machine."""
-    return f"{os.getpid()}-{re.sub(r'[^A-Za-z0-9-]', '_', socket.gethostname())}"
+def writer_tag(host: str | None = None) -> str:
+    """``<pid>-<host>`` in a temp file's name: whose it is, on which machine. The host name
+    keeps letters, digits and ``-``; any other character becomes ``_`` and its code point in
+    hex, ``_2e_`` for ``.``, so that two names never give the same tag."""
+    name = socket.gethostname() if host is None else host
+    return f"{os.getpid()}-" + re.sub(r"[^A-Za-z0-9-]", lambda m: f"_{ord(m[0]):x}_", name)
 
 
 _TEMP = re.compile(r"\.[^.]+\.(\d+)(?:-([A-Za-z0-9_-]*))?\.tmp")

@@ -262,6 +262,15 @@ def test_only_this_hosts_dead_writers_temp_files_are_removed(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([there.name, odd.name])
 
 
+def test_host_names_that_differ_give_different_temp_file_tags():
+    from senbench.results import writer_tag
+
+    hosts = ["node.1", "node_1", "node-1", "node_2e_1", "nöde.1", "n"]
+    tags = [writer_tag(h).partition("-")[2] for h in hosts]
+    assert len(set(tags)) == len(hosts)
+    assert tags[0] == "node_2e_1" and tags[2] == "node-1"
+
+
 def test_without_ray_the_ray_executor_is_a_clear_error_and_nothing_is_written(
         write_suite, tmp_path, monkeypatch):
     suite = load_suite(write_suite(SARSA), registries())
