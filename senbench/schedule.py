@@ -4,7 +4,8 @@ another run of the suite holds (see :mod:`senbench.claims`).
 
 A cell's expected time is the mean wall time of the finished cells of its env, method and
 variant: those already in the results folder, and those that finish during the run, in this
-run or in another run of the suite (its cells are passed over, but their times count). A cell
+run or in another run of the suite (its cells are passed over, but their times count, also
+when the other run was still computing them as this run came to them). A cell
 of a combination with none finished yet has no expected time: it starts while time is left,
 but only one cell of that combination at a time, until one finishes and gives the time (so
 eight workers do not start eight hour-long cells of an unknown method at the deadline's
@@ -23,7 +24,7 @@ from pathlib import Path
 
 from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
-from senbench.results import cell_path, cell_row
+from senbench.results import cell_path, cell_row, finished_status
 from senbench.status import suite_status
 from senbench.suite import Cell, Suite
 
@@ -73,8 +74,11 @@ class Schedule:
                     self._walls[(combo.env, combo.method, combo.variant)] = (combo.ok_wall_s,
                                                                              combo.ok)
         self._counted = set() if claims is None or limit_s is None else {
-            c.id for c in todo if cell_path(claims.directory, c.id).exists()}
-        """Waiting cells whose files were there already: ``_walls`` holds their times."""
+            c.id for c in todo if finished_status(cell_path(claims.directory, c.id)) == "ok"}
+        """Waiting cells finished already (``force``, or another run since ``todo`` was
+        made): ``_walls`` holds their times."""
+        self._held: list[Cell] = []
+        """Cells passed over while another run held them: their times count once written."""
 
     def expected_s(self, cell: Cell) -> float | None:
         total, count = self._walls.get(_key(cell), (0.0, 0))
@@ -90,22 +94,24 @@ class Schedule:
                 self._running[_key(cell)] += 1
                 return cell
             self.elsewhere.append(cell.id)
-            self._learn_from_elsewhere(cell)
+            if self.deadline is not None and not self._learn_from_elsewhere(cell):
+                self._held.append(cell)
             self._passed_over(cell)
         return None
 
-    def _learn_from_elsewhere(self, cell: Cell) -> None:
-        """A cell another run finished before this run came to it gives its combination's
-        time, as one of this run's would: so that a run under a time limit does not start a
-        cell of a combination only another run has timed as if it had no time. (A cell
-        still held elsewhere when this run comes to it teaches nothing: it is passed over.)"""
-        if self.deadline is None or not self.claims.finished_elsewhere(cell.id):
-            return
-        if cell.id in self._counted:
-            return
-        row = cell_row(cell_path(self.claims.directory, cell.id), ["status", "cell_wall_s"])
-        if row and row["status"] == "ok" and row["cell_wall_s"]:
-            self._add_wall(cell, row["cell_wall_s"])
+    def _learn_from_elsewhere(self, cell: Cell) -> bool:
+        """A cell another run finished gives its combination's time, as one of this run's
+        would: so that a run under a time limit does not start a cell of a combination only
+        another run has timed as if it had no time. False while the cell is not finished
+        there (still held: ``_pick`` looks again each time it picks)."""
+        if not self.claims.finished_elsewhere(cell.id):
+            return False
+        if cell.id not in self._counted:
+            self._counted.add(cell.id)
+            row = cell_row(cell_path(self.claims.directory, cell.id), ["status", "cell_wall_s"])
+            if row and row["status"] == "ok" and row["cell_wall_s"]:
+                self._add_wall(cell, row["cell_wall_s"])
+        return True
 
     def _add_wall(self, cell: Cell, wall_s: float) -> None:
         total, count = self._walls.get(_key(cell), (0.0, 0))
@@ -117,6 +123,7 @@ class Schedule:
         left = self.left_s()
         if left <= 0:
             return None
+        self._held = [c for c in self._held if not self._learn_from_elsewhere(c)]
         for cell in self.waiting:
             expected = self.expected_s(cell)
             if expected is None and self._running[_key(cell)]:

@@ -99,6 +99,41 @@ def test_a_cell_finished_before_the_schedule_was_made_counts_once(
     plan.claims.release_all()
 
 
+def test_a_cell_another_run_was_computing_gives_its_time_once_it_is_written(
+        write_suite, test_agents, tmp_path, monkeypatch):
+    suite = load_suite(write_suite(MIXED), registries())
+    slow = [c for c in suite.cells if c.method == "slow-state"]
+    cells = tmp_path / "cells"
+    cells.mkdir()
+    monkeypatch.setattr(schedule_module.time, "monotonic", lambda: 1000.0)
+    other = CellClaims(cells)
+    assert other.take(slow[0].id)  # another run is computing the first cell
+    plan = Schedule(slow, limit_s=100, claims=CellClaims(cells))
+    assert plan.next() is slow[1]  # the first is passed over; the method's time is unknown
+    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell", "status": "ok",
+                                    "cell_wall_s": 95.0}])
+    other.release(slow[0].id)
+    plan.finished(slow[1], "failed", 5.0)  # no time from this run
+    assert plan.next() is None  # the other run's 95 s count: 95 s × 1.1 does not fit in 100 s
+    assert plan.expected_s(slow[2]) == 95.0 and list(plan.waiting) == [slow[2]]
+
+
+def test_a_cell_that_had_failed_counts_when_another_run_finishes_it(
+        write_suite, test_agents, tmp_path, monkeypatch):
+    suite = load_suite(write_suite(MIXED), registries())
+    slow = [c for c in suite.cells if c.method == "slow-state"]
+    cells = tmp_path / "cells"
+    cells.mkdir()
+    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell",
+                                    "status": "failed", "cell_wall_s": 1.0}])
+    time.sleep(0.05)
+    monkeypatch.setattr(schedule_module.time, "monotonic", lambda: 1000.0)
+    plan = Schedule(slow, limit_s=100, claims=CellClaims(cells))  # to run again, as failed
+    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell", "status": "ok",
+                                    "cell_wall_s": 95.0}])  # another run got there first
+    assert plan.next() is None and plan.expected_s(slow[1]) == 95.0
+
+
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_time_limit_runs_what_fits_and_leaves_the_rest(write_suite, tmp_path, test_agents,
                                                          workers):
