@@ -162,10 +162,12 @@ def remove_stray_temp_files(directory: Path) -> int:
     A file named after another host's writer is left alone (this host cannot see whether
     that writer is alive, and several machines may share the folder), and so is one not
     named as a cell's temp file."""
-    removed, here = 0, writer_tag().partition("-")[2]
+    here = {writer_tag().partition("-")[2],  # and the tag earlier builds wrote for this host:
+            re.sub(r"[^A-Za-z0-9-]", "_", socket.gethostname())}
+    removed = 0
     for tmp in directory.glob(".*.tmp"):
         match = _TEMP.fullmatch(tmp.name)
-        if match is None or (match[2] is not None and match[2] != here):
+        if match is None or (match[2] is not None and match[2] not in here):
             continue  # not a cell's temp file, or another host's
         pid = int(match[1])
         if pid == os.getpid() or not process_alive(pid):

@@ -75,10 +75,11 @@ class Schedule:
                                                                              combo.ok)
         self._counted = set() if claims is None or limit_s is None else {
             c.id for c in todo if finished_status(cell_path(claims.directory, c.id)) == "ok"}
-        """Waiting cells finished already (``force``, or another run since ``todo`` was
-        made): ``_walls`` holds their times."""
-        self._held: list[Cell] = []
-        """Cells passed over while another run held them: their times count once written."""
+        """Waiting cells another run finished after ``todo`` was made: ``_walls`` holds
+        their times."""
+        self._held: dict[str, tuple[Cell, int | None]] = {}
+        """Cells passed over while another run held them, with their file's mtime (ns) when
+        last looked at: each counts its time once its file records ``ok``."""
 
     def expected_s(self, cell: Cell) -> float | None:
         total, count = self._walls.get(_key(cell), (0.0, 0))
@@ -89,21 +90,42 @@ class Schedule:
 
     def next(self) -> Cell | None:
         """The cell to start now, locked for this run if the schedule has ``claims``."""
+        self._look_at_held()
         while (cell := self._pick()) is not None:
             if self.claims is None or self.claims.take(cell.id):
                 self._running[_key(cell)] += 1
                 return cell
             self.elsewhere.append(cell.id)
             if self.deadline is not None and not self._learn_from_elsewhere(cell):
-                self._held.append(cell)
+                self._held[cell.id] = (cell, self._mtime(cell))
             self._passed_over(cell)
         return None
+
+    def _mtime(self, cell: Cell) -> int | None:
+        try:
+            return cell_path(self.claims.directory, cell.id).stat().st_mtime_ns
+        except FileNotFoundError:
+            return None
+
+    def _look_at_held(self) -> None:
+        """Learn from the held cells whose files changed since last looked at: one stat
+        each, a file read only on a change (a cell the other run failed is read once)."""
+        if not self._held or not self.waiting or self.deadline is None:
+            return
+        for cell_id, (cell, seen) in list(self._held.items()):
+            stamp = self._mtime(cell)
+            if stamp == seen:
+                continue
+            if self._learn_from_elsewhere(cell):
+                del self._held[cell_id]
+            else:
+                self._held[cell_id] = (cell, stamp)
 
     def _learn_from_elsewhere(self, cell: Cell) -> bool:
         """A cell another run finished gives its combination's time, as one of this run's
         would: so that a run under a time limit does not start a cell of a combination only
         another run has timed as if it had no time. False while the cell is not finished
-        there (still held: ``_pick`` looks again each time it picks)."""
+        there (still held: ``next`` looks again when its file changes)."""
         if not self.claims.finished_elsewhere(cell.id):
             return False
         if cell.id not in self._counted:
@@ -123,7 +145,6 @@ class Schedule:
         left = self.left_s()
         if left <= 0:
             return None
-        self._held = [c for c in self._held if not self._learn_from_elsewhere(c)]
         for cell in self.waiting:
             expected = self.expected_s(cell)
             if expected is None and self._running[_key(cell)]:

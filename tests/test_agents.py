@@ -68,10 +68,11 @@ def test_ppo_stops_exactly_at_the_budget_and_reports_episodes():
 @pytest.mark.parametrize("agent", ["ppo", "dqn"])
 def test_sb3_agents_leave_no_log_folder_behind(agent, tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # SB3's default log folder
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)  # which SB3 would take instead
     settings = ({"n_envs": 1, "n_steps": 64, "batch_size": 32, "n_epochs": 1} if agent == "ppo"
                 else {"learning_starts": 20, "buffer_size": 100, "train_freq": 4})
     learn(agent, "pendulum" if agent == "ppo" else "mountaincar", 100, **settings)
-    assert list(tmp_path.iterdir()) == []
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith("SB3-")] == []
 
 
 def test_recorder_evaluates_at_zero_every_interval_and_the_budget():

@@ -271,6 +271,21 @@ def test_host_names_that_differ_give_different_temp_file_tags():
     assert tags[0] == "node_2e_1" and tags[2] == "node-1"
 
 
+def test_a_dead_writers_temp_file_in_the_older_host_tag_is_removed_too(tmp_path, monkeypatch):
+    from senbench import results
+
+    writer = subprocess.Popen(["sleep", "0"])
+    writer.wait()
+    monkeypatch.setattr(results.socket, "gethostname", lambda: "node.1")
+    names = [f".abcdef.{writer.pid}-node_2e_1.tmp",  # this host's tag
+             f".abcdef.{writer.pid}-node_1.tmp",  # the one earlier builds wrote for it
+             f".abcdef.{writer.pid}-node_5f_1.tmp"]  # host node_1's: not this one's
+    for name in names:
+        (tmp_path / name).write_text("half a file")
+    assert results.remove_stray_temp_files(tmp_path) == 2
+    assert [p.name for p in tmp_path.iterdir()] == [names[2]]
+
+
 def test_without_ray_the_ray_executor_is_a_clear_error_and_nothing_is_written(
         write_suite, tmp_path, monkeypatch):
     suite = load_suite(write_suite(SARSA), registries())

@@ -118,6 +118,32 @@ def test_a_cell_another_run_was_computing_gives_its_time_once_it_is_written(
     assert plan.expected_s(slow[2]) == 95.0 and list(plan.waiting) == [slow[2]]
 
 
+def test_a_cell_another_run_failed_gives_no_time_and_is_read_once(
+        write_suite, test_agents, tmp_path, monkeypatch):
+    suite = load_suite(write_suite(MIXED), registries())
+    slow = [c for c in suite.cells if c.method == "slow-state"]
+    cells = tmp_path / "cells"
+    cells.mkdir()
+    monkeypatch.setattr(schedule_module.time, "monotonic", lambda: 1000.0)
+    other = CellClaims(cells)
+    assert other.take(slow[0].id)
+    plan = Schedule(slow, limit_s=100, claims=CellClaims(cells))
+    assert plan.next() is slow[1]
+    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell",
+                                    "status": "failed", "cell_wall_s": 95.0}])
+    other.release(slow[0].id)
+    looked = []
+    finished_elsewhere = plan.claims.finished_elsewhere
+    monkeypatch.setattr(plan.claims, "finished_elsewhere",
+                        lambda cell_id: looked.append(cell_id) or finished_elsewhere(cell_id))
+    plan.finished(slow[1], "failed", 5.0)
+    assert plan.next() is slow[2]  # a failure says nothing of the time: still unknown
+    plan.finished(slow[2], "failed", 5.0)
+    plan.waiting.append(slow[2])
+    assert plan.next() is slow[2] and looked == [slow[0].id]  # unchanged since: not read again
+    plan.claims.release_all()
+
+
 def test_a_cell_that_had_failed_counts_when_another_run_finishes_it(
         write_suite, test_agents, tmp_path, monkeypatch):
     suite = load_suite(write_suite(MIXED), registries())
