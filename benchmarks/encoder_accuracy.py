@@ -19,7 +19,6 @@ from senbench.encoders import EncoderRequest, cache_dir, complete, load_or_train
 from senbench.pixels import PixelSpec
 from senbench.plots import find_encoders, plot_traces
 from senbench.plugins import registries
-from senbench.runner import set_threads, usable_cores
 
 CACHE = Path("results/encoders")
 FRACTIONS = (0.02, 0.10, 0.20, 1.00)
@@ -28,7 +27,6 @@ FRACTIONS = (0.02, 0.10, 0.20, 1.00)
 def main(envs: list[str], fractions: tuple[float, ...] = FRACTIONS) -> None:
     import json
 
-    set_threads(usable_cores())
     regs = registries()
     rows = []
     for env in envs:

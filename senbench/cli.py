@@ -14,6 +14,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from senbench.encoders import TRAINING_THREADS
 from senbench.errors import SenbenchError
 
 app = typer.Typer(
@@ -359,7 +360,10 @@ def encoder_train(
     width: Annotated[int, typer.Option(min=8, max=512)] = 64,
     stack: Annotated[int, typer.Option(min=1, max=16)] = 2,
     cache: Annotated[Path, typer.Option(help="Encoder cache.")] = Path("results/encoders"),
-    threads: Annotated[int, typer.Option(min=0, help="torch threads (0: all cores).")] = 0,
+    threads: Annotated[int, typer.Option(min=1, help="torch threads training runs on; the "
+                                         "weights depend on it, so any other count than "
+                                         "the default names another encoder.")]
+    = TRAINING_THREADS,
 ) -> None:
     """Train a state encoder (or load it if this spec was trained before) and print its
     held-out error per dimension."""
@@ -368,16 +372,13 @@ def encoder_train(
     from senbench.encoders import EncoderRequest, Training, cache_dir, complete, load_or_train
     from senbench.pixels import PixelSpec
     from senbench.plugins import registries
-    from senbench.runner import set_threads, usable_cores
-
     regs = registries()
     regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
-    set_threads(threads or usable_cores())
     request = EncoderRequest(
         env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
         samples=samples, fraction=fraction, seed=seed,
         training=Training(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate,
-                          patience=patience, test_samples=test_samples))
+                          patience=patience, test_samples=test_samples, threads=threads))
     request = complete(request, regs)
     load_or_train(cache, request, regs, err.print)
     folder = cache_dir(cache, request)

@@ -39,6 +39,20 @@ def draw(request: EncoderRequest, regs: Registries, count: int, seed: int):
 
 def train(request: EncoderRequest, regs: Registries, out: Path,
           log: Callable[[str], None] = lambda message: None) -> dict[str, Any]:
+    """Train, evaluate and save the encoder ``request`` names, on its ``training.threads``
+    torch threads whatever the caller's, which are restored after."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(request.training.threads)
+    try:
+        return _train(request, regs, out, log)
+    finally:
+        torch.set_num_threads(before)
+
+
+def _train(request: EncoderRequest, regs: Registries, out: Path,
+           log: Callable[[str], None]) -> dict[str, Any]:
     import torch
 
     torch.manual_seed(request.seed)

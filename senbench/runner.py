@@ -225,8 +225,9 @@ def _copy_reused(todo: list[Cell], directory: Path, info: RunInfo, found: dict[s
 
 def _prepare_encoders(todo: list[Cell], directory: Path, info: RunInfo,
                       progress: GridProgress, summary: RunSummary) -> list[Cell]:
-    """Train each state encoder the cells need once, here, with every core, before any cell
-    starts (cells then load it). A cell whose encoder cannot be trained fails, with why."""
+    """Train each state encoder the cells need once, here, before any cell starts (cells
+    then load it), on its spec's ``training.threads``. A cell whose encoder cannot be trained
+    fails, with why."""
     from senbench.encoders import encoder_request, load_or_train
     from senbench.plugins import registries
 
@@ -236,7 +237,6 @@ def _prepare_encoders(todo: list[Cell], directory: Path, info: RunInfo,
             needed.setdefault(encoder_request(cell.config).id, []).append(cell)
     if not needed:
         return todo
-    set_threads(usable_cores())
     lost: set[str] = set()
     for cells in needed.values():
         try:

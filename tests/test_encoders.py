@@ -73,16 +73,33 @@ def test_a_second_request_with_the_same_spec_loads_the_cache(tmp_path):
 def test_the_same_spec_trained_twice_gives_the_same_encoder(tmp_path):
     # A cache lost with a machine is trained again: the cells that resume must see the
     # encoder the finished cells saw.
-    torch.set_num_threads(1)
+    # On another machine the caller's thread count differs: training runs on the spec's.
     spec = request(fraction=0.5)
-    load_or_train(tmp_path / "one", spec, registries())
-    load_or_train(tmp_path / "two", spec, registries())
+    for where, threads in (("one", 1), ("two", 3)):
+        torch.set_num_threads(threads)
+        load_or_train(tmp_path / where, spec, registries())
+        assert torch.get_num_threads() == threads  # given back as it was
+    torch.set_num_threads(1)
     weights = [torch.load(cache_dir(tmp_path / where, complete(spec, registries())) / "model.pt",
                           weights_only=True) for where in ("one", "two")]
     state, other = weights[0]["model"], weights[1]["model"]
     assert state.keys() == other.keys()
     assert all(torch.equal(state[k], other[k]) for k in state)
     assert torch.equal(weights[0]["mean"], weights[1]["mean"])
+
+
+def test_encoder_ids_name_the_training_threads_only_when_not_the_default():
+    # The paper suites' d = 2% MountainCar encoder, as committed under results/encoders/:
+    # its id predates Training.threads and must not change (its cells name it).
+    paper = EncoderRequest(
+        env="mountaincar", pixels=PixelSpec(64, 64, 2), arch="sen-resnet", sampler="uniform",
+        samples=50000, fraction=0.02, seed=0, sampler_config={},
+        arch_config={"widths": [16, 32, 64, 64], "hidden": 256, "batch_norm": True,
+                     "first_stride": 2})
+    assert paper.training.threads == 2 and paper.id == "f4d4c1b831c917c9"
+    other = EncoderRequest(**{**paper.__dict__, "training": Training(threads=1)})
+    assert other.id != paper.id  # other weights: another encoder
+    assert other.as_dict()["training"]["threads"] == 1
 
 
 def test_checkpoints_load_with_weights_only_and_refuse_code(tmp_path):
