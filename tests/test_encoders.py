@@ -1,3 +1,5 @@
+import json
+import os
 import pickle
 
 import numpy as np
@@ -296,3 +298,26 @@ def test_the_encoder_runs_frozen_only_for_architectures_that_declare_it():
     with torch.no_grad():
         eager = model(torch.as_tensor(frames, dtype=torch.float32) / 255).numpy()
     assert np.allclose(estimate, np.clip(eager, low, high), atol=1e-5)
+
+
+def test_encoder_train_from_the_command_line_names_a_thread_count_other_than_2(tmp_path):
+    import subprocess
+    import sys
+
+    def train_cli(*extra):
+        return subprocess.run(
+            [sys.executable, "-m", "senbench", "encoder", "train", "--env", "mountaincar",
+             "--samples", "300", "--fraction", "1.0", "--epochs", "1", "--test-samples", "100",
+             "--height", "32", "--width", "32", "--cache", str(tmp_path), *extra],
+            capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"})
+
+    default, one = train_cli(), train_cli("--threads", "1")
+    assert default.returncode == 0 and one.returncode == 0, default.stderr + one.stderr
+    assert "velocity" in default.stdout
+    folders = sorted(p.name for p in tmp_path.iterdir() if p.is_dir())
+    assert len(folders) == 2  # two thread counts: two encoders
+    specs = {json.loads((tmp_path / f / "spec.json").read_text())["training"]["threads"]
+             for f in folders}
+    assert specs == {1, 2}
+    refused = train_cli("--threads", "0")
+    assert refused.returncode == 2 and "--threads" in refused.stderr
