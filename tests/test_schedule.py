@@ -66,17 +66,26 @@ def test_a_cell_that_would_not_fit_is_passed_over_for_one_that_does(
     assert [unlimited.next() for _ in range(6)] == slow + fast and unlimited.next() is None
 
 
-def test_a_cell_another_run_finished_gives_its_combination_time(
-        write_suite, test_agents, tmp_path, monkeypatch):
+def slow_cells(write_suite, tmp_path):
+    """MIXED's three slow cells, and an empty cells folder for their files."""
     suite = load_suite(write_suite(MIXED), registries())
-    slow = [c for c in suite.cells if c.method == "slow-state"]
     cells = tmp_path / "cells"
     cells.mkdir()
+    return [c for c in suite.cells if c.method == "slow-state"], cells
+
+
+def write_done(cells, cell, status, wall_s):
+    write_cell(cells, cell.id, [{"cell_id": cell.id, "kind": "cell", "status": status,
+                                 "cell_wall_s": wall_s}])
+
+
+def test_a_cell_another_run_finished_gives_its_combination_time(
+        write_suite, test_agents, tmp_path, monkeypatch):
+    slow, cells = slow_cells(write_suite, tmp_path)
     monkeypatch.setattr(schedule_module.time, "monotonic", lambda: 1000.0)
     plan = Schedule(slow, limit_s=100, claims=CellClaims(cells))
     # another run of the suite finished the first cell since this run started, in 95 s
-    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell", "status": "ok",
-                                    "cell_wall_s": 95.0}])
+    write_done(cells, slow[0], "ok", 95.0)
     assert plan.next() is None  # its time counts: 95 s × 1.1 does not fit in 100 s
     assert plan.elsewhere == [slow[0].id] and list(plan.waiting) == slow[1:]
 
@@ -88,8 +97,7 @@ def test_a_cell_finished_before_the_schedule_was_made_counts_once(
     cells = cells_dir(tmp_path, suite.name)
     cells.mkdir(parents=True)
     for cell, wall in ((slow[0], 10.0), (slow[1], 95.0)):
-        write_cell(cells, cell.id, [{"cell_id": cell.id, "kind": "cell", "status": "ok",
-                                     "cell_wall_s": wall}])
+        write_done(cells, cell, "ok", wall)
     # slow[1] was to run, but another run finished it while this one trained its encoders
     plan = Schedule(slow[1:], limit_s=1000, suite=suite, results_root=tmp_path,
                     claims=CellClaims(cells))
@@ -99,20 +107,24 @@ def test_a_cell_finished_before_the_schedule_was_made_counts_once(
     plan.claims.release_all()
 
 
-def test_a_cell_another_run_was_computing_gives_its_time_once_it_is_written(
-        write_suite, test_agents, tmp_path, monkeypatch):
-    suite = load_suite(write_suite(MIXED), registries())
-    slow = [c for c in suite.cells if c.method == "slow-state"]
-    cells = tmp_path / "cells"
-    cells.mkdir()
+def held_then_written(write_suite, tmp_path, monkeypatch, status):
+    """A schedule under a 100 s limit that passed over the first slow cell while another
+    run computed it, started the second, and then saw the other run write the first with
+    ``status`` in 95 s."""
+    slow, cells = slow_cells(write_suite, tmp_path)
     monkeypatch.setattr(schedule_module.time, "monotonic", lambda: 1000.0)
     other = CellClaims(cells)
     assert other.take(slow[0].id)  # another run is computing the first cell
     plan = Schedule(slow, limit_s=100, claims=CellClaims(cells))
     assert plan.next() is slow[1]  # the first is passed over; the method's time is unknown
-    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell", "status": "ok",
-                                    "cell_wall_s": 95.0}])
+    write_done(cells, slow[0], status, 95.0)
     other.release(slow[0].id)
+    return plan, slow
+
+
+def test_a_cell_another_run_was_computing_gives_its_time_once_it_is_written(
+        write_suite, test_agents, tmp_path, monkeypatch):
+    plan, slow = held_then_written(write_suite, tmp_path, monkeypatch, "ok")
     plan.finished(slow[1], "failed", 5.0)  # no time from this run
     assert plan.next() is None  # the other run's 95 s count: 95 s × 1.1 does not fit in 100 s
     assert plan.expected_s(slow[2]) == 95.0 and list(plan.waiting) == [slow[2]]
@@ -120,18 +132,7 @@ def test_a_cell_another_run_was_computing_gives_its_time_once_it_is_written(
 
 def test_a_cell_another_run_failed_gives_no_time_and_is_read_once(
         write_suite, test_agents, tmp_path, monkeypatch):
-    suite = load_suite(write_suite(MIXED), registries())
-    slow = [c for c in suite.cells if c.method == "slow-state"]
-    cells = tmp_path / "cells"
-    cells.mkdir()
-    monkeypatch.setattr(schedule_module.time, "monotonic", lambda: 1000.0)
-    other = CellClaims(cells)
-    assert other.take(slow[0].id)
-    plan = Schedule(slow, limit_s=100, claims=CellClaims(cells))
-    assert plan.next() is slow[1]
-    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell",
-                                    "status": "failed", "cell_wall_s": 95.0}])
-    other.release(slow[0].id)
+    plan, slow = held_then_written(write_suite, tmp_path, monkeypatch, "failed")
     looked = []
     finished_elsewhere = plan.claims.finished_elsewhere
     monkeypatch.setattr(plan.claims, "finished_elsewhere",
@@ -146,17 +147,12 @@ def test_a_cell_another_run_failed_gives_no_time_and_is_read_once(
 
 def test_a_cell_that_had_failed_counts_when_another_run_finishes_it(
         write_suite, test_agents, tmp_path, monkeypatch):
-    suite = load_suite(write_suite(MIXED), registries())
-    slow = [c for c in suite.cells if c.method == "slow-state"]
-    cells = tmp_path / "cells"
-    cells.mkdir()
-    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell",
-                                    "status": "failed", "cell_wall_s": 1.0}])
+    slow, cells = slow_cells(write_suite, tmp_path)
+    write_done(cells, slow[0], "failed", 1.0)
     time.sleep(0.05)
     monkeypatch.setattr(schedule_module.time, "monotonic", lambda: 1000.0)
     plan = Schedule(slow, limit_s=100, claims=CellClaims(cells))  # to run again, as failed
-    write_cell(cells, slow[0].id, [{"cell_id": slow[0].id, "kind": "cell", "status": "ok",
-                                    "cell_wall_s": 95.0}])  # another run got there first
+    write_done(cells, slow[0], "ok", 95.0)  # another run got there first
     assert plan.next() is None and plan.expected_s(slow[1]) == 95.0
 
 
