@@ -14,7 +14,6 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from senbench.encoders import TRAINING_THREADS
 from senbench.errors import SenbenchError
 
 app = typer.Typer(
@@ -360,16 +359,23 @@ def encoder_train(
     width: Annotated[int, typer.Option(min=8, max=512)] = 64,
     stack: Annotated[int, typer.Option(min=1, max=16)] = 2,
     cache: Annotated[Path, typer.Option(help="Encoder cache.")] = Path("results/encoders"),
-    threads: Annotated[int, typer.Option(min=1, help="torch threads training runs on; the "
-                                         "weights depend on it, so any other count than "
-                                         "the default names another encoder.")]
-    = TRAINING_THREADS,
+    threads: Annotated[int | None, typer.Option(min=1, help="torch threads training runs on "
+                                                "(default 2); the weights depend on it, so "
+                                                "another count names another encoder.")]
+    = None,
 ) -> None:
     """Train a state encoder (or load it if this spec was trained before) and print its
     held-out error per dimension."""
     import pandas as pd
 
-    from senbench.encoders import EncoderRequest, Training, cache_dir, complete, load_or_train
+    from senbench.encoders import (
+        TRAINING_THREADS,
+        EncoderRequest,
+        Training,
+        cache_dir,
+        complete,
+        load_or_train,
+    )
     from senbench.pixels import PixelSpec
     from senbench.plugins import registries
     regs = registries()
@@ -378,7 +384,8 @@ def encoder_train(
         env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
         samples=samples, fraction=fraction, seed=seed,
         training=Training(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate,
-                          patience=patience, test_samples=test_samples, threads=threads))
+                          patience=patience, test_samples=test_samples,
+                          threads=threads or TRAINING_THREADS))
     request = complete(request, regs)
     load_or_train(cache, request, regs, err.print)
     folder = cache_dir(cache, request)
