@@ -12,7 +12,6 @@ from typing import Annotated
 import typer
 from rich.console import Console
 from rich.markup import escape
-from rich.table import Table
 
 from senbench.errors import SenbenchError
 
@@ -320,18 +319,9 @@ def show(
 def plugins() -> None:
     """Every env, agent, encoder and sampler installed, and which distribution provided it."""
     from senbench.plugins import registries
+    from senbench.report import render_plugins
 
-    regs = registries()
-    table = Table(title="senbench plugins")
-    for column in ("kind", "name", "provided by", "description"):
-        table.add_column(column)
-    for registry in (regs.envs, regs.agents, regs.encoders, regs.samplers):
-        if not len(registry):
-            table.add_row(registry.kind, "[dim]none installed[/]", "", "")
-        for name in registry.names():
-            spec = registry.get(name)
-            table.add_row(registry.kind, name, str(registry.origin(name)), spec.description)
-    out.print(table)
+    render_plugins(registries(), out)
 
 
 encoder_app = typer.Typer(help="State encoders: train, inspect.", no_args_is_help=True)
@@ -378,6 +368,7 @@ def encoder_train(
     )
     from senbench.pixels import PixelSpec
     from senbench.plugins import registries
+    from senbench.report import render_encoder
     regs = registries()
     regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
     request = EncoderRequest(
@@ -389,19 +380,10 @@ def encoder_train(
     request = complete(request, regs)
     load_or_train(cache, request, regs, err.print)
     folder = cache_dir(cache, request)
-    metrics = pd.read_parquet(folder / "metrics.parquet")
-    errors = metrics[metrics["kind"] == "test"]
-    table = Table(title=f"{env}: {arch}, {request.train_size} of {samples} {sampler} samples "
-                        f"(d = {100 * fraction:g}%), held-out RMSE on {test_samples}")
-    table.add_column("dimension")
-    table.add_column("RMSE", justify="right")
-    table.add_column("% of range", justify="right")
-    for row in errors.itertuples():
-        table.add_row(row.dimension, f"{row.rmse:.4g}", f"{row.rmse_pct_of_range:.2f}")
-    out.print(table)
-    epochs_run = int(metrics["epoch"].max())
-    out.print(f"encoder {request.id}: {epochs_run} epochs, trained in "
-              f"{errors['wall_s'].iloc[0]:.0f} s → {folder}")
+    render_encoder(pd.read_parquet(folder / "metrics.parquet"),
+                   f"{env}: {arch}, {request.train_size} of {samples} {sampler} samples "
+                   f"(d = {100 * fraction:g}%), held-out RMSE on {test_samples}", out)
+    out.print(f"encoder {request.id} → {folder}")
 
 
 @plot_app.command("curves")

@@ -313,11 +313,12 @@ def test_encoder_train_from_the_command_line_names_a_thread_count_other_than_2(t
 
     default, one = train_cli(), train_cli("--threads", "1")
     assert default.returncode == 0 and one.returncode == 0, default.stderr + one.stderr
-    assert "velocity" in default.stdout
+    assert "velocity" in default.stdout and "1 epochs, trained in" in default.stdout
     folders = sorted(p.name for p in tmp_path.iterdir() if p.is_dir())
     assert len(folders) == 2  # two thread counts: two encoders
     specs = {json.loads((tmp_path / f / "spec.json").read_text())["training"]["threads"]
              for f in folders}
     assert specs == {1, 2}
+    assert all(f"encoder {f} →" in default.stdout + one.stdout for f in folders)
     refused = train_cli("--threads", "0")
     assert refused.returncode == 2 and "--threads" in refused.stderr
