@@ -1,6 +1,7 @@
 """State encoder speed on this machine: training images/s (batch 128, Adam) and inference
 frames/s at batch 1 (what an agent pays per step) and batched, for each architecture at
-2x64x64, with 1 thread and with every core.
+2x64x64, with 1 thread and with every core; then, at batch 1, the encoder as an agent calls
+it (uint8 frames in, clipped estimate out) eager and frozen into TorchScript, side by side.
 
     .venv/bin/python benchmarks/encoder_speed.py          (≈ 1 min)
 """
@@ -9,9 +10,10 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import torch
 
-from senbench.encoders import EncoderRequest, build_model
+from senbench.encoders import EncoderRequest, StateEncoder, build_model
 from senbench.pixels import PixelSpec
 from senbench.plugins import registries
 from senbench.runner import set_threads, usable_cores
@@ -51,6 +53,18 @@ def measure(arch: str, threads: int) -> tuple[float, float, float]:
     return training, single, batched
 
 
+def agent_call(arch: str, traceable: bool) -> float:
+    """Frames/s of ``StateEncoder`` at batch 1 on one thread, the per-step cost of an
+    encoded observation."""
+    set_threads(1)
+    torch.manual_seed(0)
+    request = EncoderRequest("mountaincar", PixelSpec(), arch, "uniform", 10, 1.0)
+    encoder = StateEncoder(build_model(request, registries(), 2), np.zeros(2), np.ones(2),
+                           np.full(2, -10.0), np.full(2, 10.0), traceable=traceable)
+    frames = np.random.default_rng(0).integers(0, 256, (1, 2, 64, 64), dtype=np.uint8)
+    return rate(1, lambda: encoder(frames))
+
+
 def main() -> None:
     cores = usable_cores()
     print(f"{'architecture':12s} {'threads':>7s} {'train img/s':>12s} {'infer b=1':>10s} "
@@ -59,6 +73,13 @@ def main() -> None:
         for threads in sorted({1, cores}):
             training, single, batched = measure(arch, threads)
             print(f"{arch:12s} {threads:7d} {training:12,.0f} {single:10,.0f} {batched:12,.0f}")
+    print("\nAs an agent calls it (StateEncoder, batch 1, 1 thread):")
+    print(f"{'architecture':12s} {'eager µs':>9s} {'frozen µs':>10s} {'speed-up':>9s}")
+    for arch in ("sen-resnet", "nature-cnn"):
+        traceable = registries().encoders.get(arch).traceable
+        eager = agent_call(arch, False)
+        frozen = agent_call(arch, True) if traceable else float("nan")
+        print(f"{arch:12s} {1e6 / eager:9.0f} {1e6 / frozen:10.0f} {frozen / eager:8.2f}x")
 
 
 if __name__ == "__main__":
