@@ -165,9 +165,14 @@ def report(
     at: Annotated[list[int] | None, typer.Option(
         min=0, help="Also the mean evaluation return at this frame, over seeds (repeat for "
                     "several; a seed's last evaluation at or before it).")] = None,
+    export: Annotated[Path | None, typer.Option(
+        "--out", help="Also write the summary, a row per env and method, to this .csv or "
+                      ".parquet file.")] = None,
 ) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
     from senbench.report import (
+        check_export_path,
+        export_summary,
         parse_thresholds,
         render,
         render_at,
@@ -178,8 +183,14 @@ def report(
     from senbench.results import read_results
 
     thresholds = parse_thresholds(threshold or [])
+    if export is not None:
+        check_export_path(export)
     results = with_thresholds(read_results(results_dir, include_stale=all_cells), thresholds)
-    render(summarize(results), out)
+    summary = summarize(results)
+    render(summary, out)
+    if export is not None:
+        export_summary(summary, export)
+        out.print(f"summary written to {export}")
     if at:
         render_at(returns_at(results, sorted(set(at))), out)
     if results.attrs.get("stale"):

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 from rich.console import Console
@@ -103,6 +106,36 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
                         f"{prefix}_mean": _mean(ok[column]), f"{prefix}_std": _std(ok[column])})
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+EXPORT_FORMATS = (".csv", ".parquet")
+
+
+def check_export_path(path: Path) -> None:
+    """Refuse a file the summary cannot be written to, before anything is computed."""
+    if path.suffix.lower() not in EXPORT_FORMATS:
+        raise ResultsError(f"--out {path}: write the summary to a .csv or .parquet file")
+    if not path.parent.is_dir():
+        raise ResultsError(f"--out {path}: no folder {path.parent}; create it first")
+
+
+def export_summary(summary: pd.DataFrame, path: Path) -> None:
+    """``summarize``'s table as a file (.csv or .parquet, by its suffix): one row per env,
+    method and variant, with ``label`` as the report prints it first. Written to a
+    temporary file and renamed, so a failure leaves no partial file."""
+    check_export_path(path)
+    table = summary.copy()
+    table.insert(0, "label", [label(m, v) for m, v in zip(table["method"], table["variant"],
+                                                          strict=True)])
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        if path.suffix.lower() == ".csv":
+            table.to_csv(tmp, index=False)
+        else:
+            table.to_parquet(tmp, index=False)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _mean(values: pd.Series) -> float:

@@ -200,3 +200,30 @@ def test_another_threshold_changes_frames_to_threshold_and_the_title(write_suite
                           env={"COLUMNS": "200", "PATH": "/usr/bin:/bin"})
     assert done.returncode == 0, done.stderr
     assert "threshold -200" in done.stdout and "not reached" not in done.stdout
+
+
+def test_report_writes_its_summary_to_csv_or_parquet_and_refuses_other_files(write_suite,
+                                                                               tmp_path):
+    text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
+    run_suite(load_suite(write_suite(text), registries()), tmp_path)
+    expected = summarize(read_results(tmp_path / "rep"))
+
+    def report(*extra):
+        return subprocess.run([sys.executable, "-m", "senbench", "report",
+                               str(tmp_path / "rep"), *extra], capture_output=True, text=True)
+
+    for name, read in (("s.csv", pd.read_csv), ("s.parquet", pd.read_parquet)):
+        done = report("--out", str(tmp_path / name))
+        assert done.returncode == 0, done.stderr
+        assert f"summary written to {tmp_path / name}" in done.stdout
+        table = read(tmp_path / name)
+        assert list(table["label"]) == ["sarsa-state"]
+        assert list(table.columns[1:]) == list(expected.columns)
+        for column in ("seeds_ok", "final_iqm", "final_low", "final_high", "auc_mean"):
+            assert table[column].iloc[0] == pytest.approx(expected[column].iloc[0])
+    for bad, message in (("s.txt", "a .csv or .parquet file"), ("no/s.csv", "create it first")):
+        done = report("--out", str(tmp_path / bad))
+        assert done.returncode == 2 and message in done.stderr, done.stderr
+        assert "mountaincar" not in done.stdout  # refused before any table
+        assert not (tmp_path / bad).exists()
+    assert not list(tmp_path.glob(".s.*.tmp"))
