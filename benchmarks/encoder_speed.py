@@ -53,16 +53,19 @@ def measure(arch: str, threads: int) -> tuple[float, float, float]:
     return training, single, batched
 
 
-def agent_call(arch: str, traceable: bool) -> float:
+def agent_call(arch: str, traceable: bool) -> tuple[float, bool]:
     """Frames/s of ``StateEncoder`` at batch 1 on one thread, the per-step cost of an
-    encoded observation."""
+    encoded observation; and whether it ran frozen (a trace that does not reproduce the
+    eager output is dropped, and the encoder stays eager)."""
     set_threads(1)
     torch.manual_seed(0)
     request = EncoderRequest("mountaincar", PixelSpec(), arch, "uniform", 10, 1.0)
     encoder = StateEncoder(build_model(request, registries(), 2), np.zeros(2), np.ones(2),
                            np.full(2, -10.0), np.full(2, 10.0), traceable=traceable)
     frames = np.random.default_rng(0).integers(0, 256, (1, 2, 64, 64), dtype=np.uint8)
-    return rate(1, lambda: encoder(frames))
+    speed = rate(1, lambda: encoder(frames))
+    frozen = isinstance(encoder._frozen.get(frames.shape), torch.jit.ScriptModule)
+    return speed, frozen
 
 
 def main() -> None:
@@ -76,11 +79,13 @@ def main() -> None:
     print("\nAs an agent calls it (StateEncoder, batch 1, 1 thread):")
     print(f"{'architecture':12s} {'eager µs':>9s} {'frozen µs':>10s} {'speed-up':>9s}")
     for arch in ("sen-resnet", "nature-cnn"):
-        traceable = registries().encoders.get(arch).traceable
-        eager = agent_call(arch, False)
-        frozen = agent_call(arch, True) if traceable else float("nan")
-        print(f"{arch:12s} {1e6 / eager:9.0f} {1e6 / frozen:10.0f} {frozen / eager:8.2f}x")
-
+        eager, _ = agent_call(arch, False)
+        if not registries().encoders.get(arch).traceable:
+            print(f"{arch:12s} {1e6 / eager:9.0f} {'— (not traceable)':>21s}")
+            continue
+        frozen, ok = agent_call(arch, True)
+        note = "" if ok else "  (trace rejected: ran eager)"
+        print(f"{arch:12s} {1e6 / eager:9.0f} {1e6 / frozen:10.0f} {frozen / eager:8.2f}x{note}")
 
 if __name__ == "__main__":
     main()

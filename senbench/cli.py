@@ -166,8 +166,8 @@ def report(
         min=0, help="Also the mean evaluation return at this frame, over seeds (repeat for "
                     "several; a seed's last evaluation at or before it).")] = None,
     export: Annotated[Path | None, typer.Option(
-        "--out", help="Also write the summary, a row per env and method, to this .csv or "
-                      ".parquet file.")] = None,
+        "--out", help="Also write the summary, a row per env, method and variant, to this "
+                      ".csv or .parquet file (replacing it).")] = None,
 ) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
     from senbench.report import (
@@ -190,7 +190,7 @@ def report(
     render(summary, out)
     if export is not None:
         export_summary(summary, export)
-        out.print(f"summary written to {export}")
+        out.print(f"summary written to {escape(str(export))}")
     if at:
         render_at(returns_at(results, sorted(set(at))), out)
     if results.attrs.get("stale"):
@@ -330,7 +330,7 @@ def show(
 def plugins() -> None:
     """Every env, agent, encoder and sampler installed, and which distribution provided it."""
     from senbench.plugins import registries
-    from senbench.report import render_plugins
+    from senbench.tables import render_plugins
 
     render_plugins(registries(), out)
 
@@ -379,7 +379,7 @@ def encoder_train(
     )
     from senbench.pixels import PixelSpec
     from senbench.plugins import registries
-    from senbench.report import render_encoder
+    from senbench.tables import render_encoder
     regs = registries()
     regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
     request = EncoderRequest(

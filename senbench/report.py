@@ -115,14 +115,23 @@ def check_export_path(path: Path) -> None:
     """Refuse a file the summary cannot be written to, before anything is computed."""
     if path.suffix.lower() not in EXPORT_FORMATS:
         raise ResultsError(f"--out {path}: write the summary to a .csv or .parquet file")
+    if path.is_dir():
+        raise ResultsError(f"--out {path}: is a folder; name a file in it, e.g. "
+                           f"{path / 'summary.csv'}")
     if not path.parent.is_dir():
         raise ResultsError(f"--out {path}: no folder {path.parent}; create it first")
+    if path.parent.name == "cells":
+        raise ResultsError(f"--out {path}: a cells/ folder holds only cell results; write "
+                           "the summary beside it")
+    if not os.access(path.parent, os.W_OK):
+        raise ResultsError(f"--out {path}: cannot write in {path.parent}")
 
 
 def export_summary(summary: pd.DataFrame, path: Path) -> None:
     """``summarize``'s table as a file (.csv or .parquet, by its suffix): one row per env,
     method and variant, with ``label`` as the report prints it first. Written to a
-    temporary file and renamed, so a failure leaves no partial file."""
+    temporary file and renamed over any file of that name, so a failure leaves no partial
+    file."""
     check_export_path(path)
     table = summary.copy()
     table.insert(0, "label", [label(m, v) for m, v in zip(table["method"], table["variant"],
@@ -134,6 +143,8 @@ def export_summary(summary: pd.DataFrame, path: Path) -> None:
         else:
             table.to_parquet(tmp, index=False)
         os.replace(tmp, path)
+    except OSError as exc:
+        raise ResultsError(f"--out {path}: {exc.strerror or exc}") from None
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -246,34 +257,3 @@ def render_at(table: pd.DataFrame, console: Console) -> None:
             out.add_row(escape(label(method, variant)), *cells)
         console.print(out)
 
-
-def render_encoder(metrics: pd.DataFrame, title: str, console: Console) -> None:
-    """An encoder's ``metrics.parquet``: held-out RMSE per state dimension, then its epochs
-    and training time."""
-    errors = metrics[metrics["kind"] == "test"]
-    table = Table(title=title)
-    table.add_column("dimension")
-    table.add_column("RMSE", justify="right")
-    table.add_column("% of range", justify="right")
-    for row in errors.itertuples():
-        table.add_row(escape(str(row.dimension)), f"{row.rmse:.4g}",
-                      f"{row.rmse_pct_of_range:.2f}")
-    console.print(table)
-    console.print(f"{int(metrics['epoch'].max())} epochs, trained in "
-                  f"{errors['wall_s'].iloc[0]:.0f} s")
-
-
-def render_plugins(registries, console: Console) -> None:
-    """Every registered env, agent, encoder and sampler with the distribution it came from."""
-    table = Table(title="senbench plugins")
-    for column in ("kind", "name", "provided by", "description"):
-        table.add_column(column)
-    for registry in (registries.envs, registries.agents, registries.encoders,
-                     registries.samplers):
-        if not len(registry):
-            table.add_row(registry.kind, "[dim]none installed[/]", "", "")
-        for name in registry.names():
-            spec = registry.get(name)
-            table.add_row(registry.kind, name, escape(str(registry.origin(name))),
-                          escape(spec.description))
-    console.print(table)

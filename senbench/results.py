@@ -192,7 +192,9 @@ def find_cell_files(path: str | Path) -> list[Path]:
         raise ResultsError(f"{root}: no such results folder")
     if root.is_file():
         return [root]
-    files = sorted(root.glob("*.parquet")) or sorted(root.glob("**/cells/*.parquet"))
+    # the cells/ folders below first: other Parquet files beside them (an exported
+    # summary) are not cells; a folder without any is itself a cells folder
+    files = sorted(root.glob("**/cells/*.parquet")) or sorted(root.glob("*.parquet"))
     if not files:
         raise ResultsError(f"{root}: holds no cell results (*.parquet); run a suite first")
     return files

@@ -212,18 +212,24 @@ def test_report_writes_its_summary_to_csv_or_parquet_and_refuses_other_files(wri
         return subprocess.run([sys.executable, "-m", "senbench", "report",
                                str(tmp_path / "rep"), *extra], capture_output=True, text=True)
 
-    for name, read in (("s.csv", pd.read_csv), ("s.parquet", pd.read_parquet)):
-        done = report("--out", str(tmp_path / name))
+    beside = tmp_path / "rep" / "summary.parquet"  # in the results folder: not a cell
+    for out, read in ((tmp_path / "s.CSV", pd.read_csv), (beside, pd.read_parquet),
+                      (beside, pd.read_parquet)):  # the second time over the first
+        done = report("--out", str(out))
         assert done.returncode == 0, done.stderr
-        assert f"summary written to {tmp_path / name}" in done.stdout
-        table = read(tmp_path / name)
+        assert f"summary written to {out}" in done.stdout
+        table = read(out)
         assert list(table["label"]) == ["sarsa-state"]
         assert list(table.columns[1:]) == list(expected.columns)
         for column in ("seeds_ok", "final_iqm", "final_low", "final_high", "auc_mean"):
             assert table[column].iloc[0] == pytest.approx(expected[column].iloc[0])
-    for bad, message in (("s.txt", "a .csv or .parquet file"), ("no/s.csv", "create it first")):
+    (tmp_path / "d.csv").mkdir()
+    for bad, message in (("s.txt", "a .csv or .parquet file"), ("no/s.csv", "create it first"),
+                         ("d.csv", "is a folder"), ("rep/cells/s.parquet", "beside it")):
         done = report("--out", str(tmp_path / bad))
         assert done.returncode == 2 and message in done.stderr, done.stderr
         assert "mountaincar" not in done.stdout  # refused before any table
-        assert not (tmp_path / bad).exists()
-    assert not list(tmp_path.glob(".s.*.tmp"))
+        assert "Traceback" not in done.stderr
+        assert bad == "d.csv" or not (tmp_path / bad).exists()
+    assert not list(tmp_path.rglob(".*.tmp"))
+    assert len(read_results(tmp_path / "rep")) == len(read_results(tmp_path / "rep" / "cells"))
