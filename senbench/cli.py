@@ -14,6 +14,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from senbench.errors import SenbenchError
+from senbench.outputs import FIGURES, check_out_file, written_whole
 
 app = typer.Typer(
     help="Benchmark data-efficient RL from images: state encoders (SEN-DRL) vs pixel RL.",
@@ -42,6 +43,7 @@ def user_errors(command):
     return wrapper
 
 
+FIGURE_HELP = "Figure to write: a .png, .pdf or .svg file."
 Threshold = Annotated[list[str] | None, typer.Option(
     help="Frames to threshold (and the plots' dashed line) at this return instead of the "
          "env's: -150 (results of one env) or mountaincar=-150 (repeat for several envs).")]
@@ -251,7 +253,7 @@ def tune(
                                          "seed, all at once, so that the pruner sees every "
                                          "seed at each evaluation early).")] = 0,
     export: Annotated[Path | None, typer.Option(
-        help="Write the best trial as a suite 'methods:' block (YAML) to this file.")] = None,
+        help="Write the best trial as a suite 'methods:' block to this .yaml file.")] = None,
     results: Annotated[Path, typer.Option(help="Results root.")] = Path("results"),
 ) -> None:
     """Tune a method's hyperparameters with Optuna: seed-averaged trials, pruning on the
@@ -273,6 +275,8 @@ def tune(
     )
 
     check_objective(objective)  # before a study is stored
+    if export is not None:
+        check_out_file(export, (".yaml", ".yml"), "--export")
     suite = _load(suite_file)
     regs = registries()
     tgt = target(suite, method, env, regs)
@@ -300,16 +304,17 @@ def tune(
             raise typer.Exit(1)
         text = yaml.safe_dump(best_block(done, tgt), sort_keys=False)
         best = done.best_trial
-        export.write_text(f"# senbench tune: study '{name}', trial {best.number}, "
-                          f"{objective} {best.value:,.2f} over {seeds} seeds\n{text}")
-        out.print(f"best trial written to {export}")
+        with written_whole(export, "--export") as tmp:
+            tmp.write_text(f"# senbench tune: study '{name}', trial {best.number}, "
+                           f"{objective} {best.value:,.2f} over {seeds} seeds\n{text}")
+        out.print(f"best trial written to {escape(str(export))}")
 
 
 @app.command()
 @user_errors
 def show(
     env: Annotated[str, typer.Argument(help="An env plugin's name.")],
-    png: Annotated[Path, typer.Option("--out", help="PNG file to write.")] = Path("frames.png"),
+    png: Annotated[Path, typer.Option("--out", help=FIGURE_HELP)] = Path("frames.png"),
     frames: Annotated[int, typer.Option(min=1, max=32, help="States to show.")] = 8,
     height: Annotated[int, typer.Option(min=8, max=512)] = 64,
     width: Annotated[int, typer.Option(min=8, max=512)] = 64,
@@ -320,9 +325,10 @@ def show(
     from senbench.show import save_comparison
 
     spec = registries().envs.get(env)
+    check_out_file(png, FIGURES)
     difference = save_comparison(spec, png, frames, (height, width), seed)
-    out.print(f"{png}: {frames} states of {env}; mean |difference| from gymnasium's resized "
-              f"frames: {difference:.2f} grey levels")
+    out.print(f"{escape(str(png))}: {frames} states of {env}; mean |difference| from "
+              f"gymnasium's resized frames: {difference:.2f} grey levels")
 
 
 @app.command()
@@ -402,7 +408,7 @@ def encoder_train(
 def plot_curves_command(
     results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
     png: Annotated[Path | None, typer.Option(
-        "--out", help="PNG file to write (default: RESULTS_DIR/curves.png).")] = None,
+        "--out", help=FIGURE_HELP + " (default: RESULTS_DIR/curves.png)")] = None,
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
     threshold: Threshold = None,
@@ -413,12 +419,13 @@ def plot_curves_command(
     from senbench.report import parse_thresholds, with_thresholds
     from senbench.results import read_results
 
+    png = png or results_dir / "curves.png"
+    check_out_file(png, FIGURES)
     results = with_thresholds(read_results(results_dir, include_stale=all_cells),
                               parse_thresholds(threshold or []))
-    png = png or results_dir / "curves.png"
     suite = results["suite"].iloc[0]
     envs = plot_curves(results, png, f"{suite}: learning curves")
-    out.print(f"{png}: {', '.join(envs)}")
+    out.print(f"{escape(str(png))}: {', '.join(envs)}")
 
 
 @plot_app.command("traces")
@@ -430,30 +437,18 @@ def plot_traces_command(
     results: Annotated[Path | None, typer.Option(
         help="The encoders a suite's cells used, from its results folder (and the "
         "encoders/ cache beside it).")] = None,
-    png: Annotated[Path, typer.Option("--out", help="PNG file to write.")] = Path("traces.png"),
+    png: Annotated[Path, typer.Option("--out", help=FIGURE_HELP)] = Path("traces.png"),
+    train: Annotated[bool, typer.Option(help="With --results: train the encoders missing "
+                                        "from the cache, from the cells' spec.")] = False,
 ) -> None:
     """Predicted vs true observation along a successful trajectory, one line per encoder
     (the paper's Figs. 6 and 10)."""
-    from senbench.errors import ResultsError
-    from senbench.plots import find_encoders, plot_traces
-    from senbench.results import read_results
+    from senbench.plots import encoders_of_results, find_encoders, plot_traces
 
+    check_out_file(png, FIGURES)
     if results is not None:
-        frame = read_results(results)
-        ids = sorted(set(frame["encoder_id"].dropna()))
-        if not ids:
-            raise ResultsError(f"no cell in {results} ran on an encoder")
-        from senbench.results import find_cell_files
-
-        roots = {f.parent.parent.parent for f in find_cell_files(results)}
-        folders = [next((r / "encoders" / i for r in roots if (r / "encoders" / i).exists()),
-                        None) for i in ids]
-        missing = [i for i, f in zip(ids, folders, strict=True) if f is None]
-        if missing:
-            raise ResultsError(f"encoders {', '.join(missing)} used by {results} are not in "
-                               f"{' or '.join(str(r / 'encoders') for r in sorted(roots))}; "
-                               "run the suite again to train them")
-        paths = [*(paths or []), *folders]
+        paths = [*(paths or []), *encoders_of_results(
+            results, env, train, lambda message: err.print(escape(message), highlight=False))]
     encoders = find_encoders(paths or [Path("results/encoders")], env)
     plot_traces(encoders, png)
-    out.print(f"{png}: {len(encoders)} encoders")
+    out.print(f"{escape(str(png))}: {len(encoders)} encoders")

@@ -23,6 +23,10 @@ class ResultsError(SenbenchError):
     """A results folder is missing or holds no readable results."""
 
 
+class OutputError(SenbenchError):
+    """A file a command was asked to write cannot be written there."""
+
+
 class UnknownNameError(SenbenchError):
     def __init__(self, kind: str, name: str, known: list[str]):
         self.kind, self.name, self.known = kind, name, sorted(known)

@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from senbench.errors import ResultsError
+from senbench.outputs import written_whole
 
 DASHES = ["-", (0, (6, 3)), (0, (1, 2)), (0, (6, 2, 1, 2))]
 """Line styles of the methods on a curves plot, in turn."""
@@ -31,6 +32,44 @@ def find_encoders(paths: list[Path], env: str | None) -> list[tuple[dict, pd.Dat
                            + (f" for env '{env}'" if env else "")
                            + "; train one with 'senbench encoder train'")
     return sorted(found, key=lambda item: (item[0]["arch"], item[0]["fraction"]))
+
+
+def encoders_of_results(results: Path, env: str | None = None, train: bool = False,
+                        log=lambda message: None) -> list[Path]:
+    """The folders of the encoders a results folder's cells (of ``env``, if given) ran on,
+    in the ``encoders/``
+    cache beside the suites. One that is missing is trained from the cells' own spec if
+    ``train`` (its id is the spec's hash, so it is the same encoder), else an error says
+    so."""
+    import json
+
+    from senbench.results import find_cell_files, read_results
+
+    frame = read_results(results)
+    cells = frame[(frame["kind"] == "cell") & ((frame["env"] == env) if env else True)]
+    cells = cells.dropna(subset=["encoder_id"])
+    configs = dict(zip(cells["encoder_id"], cells["config"], strict=True))
+    if not configs:
+        raise ResultsError(f"no cell in {results} ran on an encoder"
+                           + (f" on env '{env}'" if env else ""))
+    roots = sorted({f.parent.parent.parent for f in find_cell_files(results)})
+    folders = {i: next((r / "encoders" / i for r in roots
+                        if (r / "encoders" / i / "model.pt").exists()), None)
+               for i in sorted(configs)}
+    missing = [i for i, folder in folders.items() if folder is None]
+    if missing and not train:
+        raise ResultsError(f"encoders {', '.join(missing)} used by {results} are not in "
+                           f"{' or '.join(str(r / 'encoders') for r in roots)}; add --train "
+                           "to train them from the cells' spec")
+    if missing:
+        from senbench.encoders import cache_dir, encoder_request, load_or_train
+        from senbench.plugins import registries
+
+        for encoder_id in missing:
+            request = encoder_request(json.loads(configs[encoder_id]))
+            load_or_train(roots[0] / "encoders", request, registries(), log)
+            folders[encoder_id] = cache_dir(roots[0] / "encoders", request)
+    return list(folders.values())
 
 
 def plot_traces(encoders: list[tuple[dict, pd.DataFrame]], out: Path) -> None:
@@ -70,9 +109,11 @@ def plot_traces(encoders: list[tuple[dict, pd.DataFrame]], out: Path) -> None:
     fig.suptitle(f"{env}: state encoder estimates vs the true observation "
                  f"({int(first['step'].max()) + 1} steps)")
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    try:
+        with written_whole(out) as tmp:
+            fig.savefig(tmp, format=out.suffix[1:].lower(), dpi=110)
+    finally:
+        plt.close(fig)
 
 
 def learning_curves(results: pd.DataFrame) -> dict[str, dict[str, pd.DataFrame]]:
@@ -137,7 +178,9 @@ def plot_curves(results: pd.DataFrame, out: Path, title: str) -> list[str]:
         ax.legend(fontsize=8, loc="lower right")
     fig.suptitle(title)
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    try:
+        with written_whole(out) as tmp:
+            fig.savefig(tmp, format=out.suffix[1:].lower(), dpi=110)
+    finally:
+        plt.close(fig)
     return list(curves)

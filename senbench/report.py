@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +10,9 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from senbench.errors import ResultsError
+from senbench.errors import OutputError, ResultsError
 from senbench.metrics import FINAL_WINDOW, THRESHOLD_WINDOW, cell_metrics
+from senbench.outputs import check_out_file, written_whole
 from senbench.stats import iqm, stratified_ci
 
 METRICS = {  # summary prefix → (per-cell column, higher is better)
@@ -113,40 +113,24 @@ EXPORT_FORMATS = (".csv", ".parquet")
 
 def check_export_path(path: Path) -> None:
     """Refuse a file the summary cannot be written to, before anything is computed."""
-    if path.suffix.lower() not in EXPORT_FORMATS:
-        raise ResultsError(f"--out {path}: write the summary to a .csv or .parquet file")
-    if path.is_dir():
-        raise ResultsError(f"--out {path}: is a folder; name a file in it, e.g. "
-                           f"{path / 'summary.csv'}")
-    if not path.parent.is_dir():
-        raise ResultsError(f"--out {path}: no folder {path.parent}; create it first")
+    check_out_file(path, EXPORT_FORMATS)
     if path.parent.name == "cells":
-        raise ResultsError(f"--out {path}: a cells/ folder holds only cell results; write "
-                           "the summary beside it")
-    if not os.access(path.parent, os.W_OK):
-        raise ResultsError(f"--out {path}: cannot write in {path.parent}")
+        raise OutputError(f"--out {path}: a cells/ folder holds only cell results; write "
+                          "the summary beside it")
 
 
 def export_summary(summary: pd.DataFrame, path: Path) -> None:
     """``summarize``'s table as a file (.csv or .parquet, by its suffix): one row per env,
-    method and variant, with ``label`` as the report prints it first. Written to a
-    temporary file and renamed over any file of that name, so a failure leaves no partial
-    file."""
+    method and variant, with ``label`` as the report prints it first; written whole."""
     check_export_path(path)
     table = summary.copy()
     table.insert(0, "label", [label(m, v) for m, v in zip(table["method"], table["variant"],
                                                           strict=True)])
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
+    with written_whole(path) as tmp:
         if path.suffix.lower() == ".csv":
             table.to_csv(tmp, index=False)
         else:
             table.to_parquet(tmp, index=False)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise ResultsError(f"--out {path}: {exc.strerror or exc}") from None
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def _mean(values: pd.Series) -> float:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from senbench.errors import SenbenchError
+from senbench.outputs import written_whole
 from senbench.pixels import area_resize, headless_pygame, quantize, to_gray
 from senbench.specs import EnvSpec
 
@@ -72,7 +73,9 @@ def save_comparison(spec: EnvSpec, out: Path, count: int = 8, size: tuple[int, i
     fig.suptitle(f"{spec.name}: states ({labels}); mean |difference| of the last two rows "
                  f"{difference:.2f} grey levels", fontsize=10)
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    try:
+        with written_whole(out) as tmp:
+            fig.savefig(tmp, format=out.suffix[1:].lower(), dpi=100)
+    finally:
+        plt.close(fig)
     return difference

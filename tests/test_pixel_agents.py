@@ -199,3 +199,20 @@ def test_the_papers_seven_methods_run_in_one_suite_and_report(write_suite, tmp_p
                            "--out", str(png)], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert "1 encoders" in done.stdout and png.stat().st_size > 10_000
+    # On a clone without the encoder cache, --train makes the very encoder the cells used.
+    cache = tmp_path / "results" / "encoders"
+    [folder] = [f for f in cache.iterdir()
+                if f.is_dir() and '"pendulum"' in (f / "spec.json").read_text()]
+    cache.rename(tmp_path / "kept")
+    traces = [sys.executable, "-m", "senbench", "plot", "traces", "--results",
+              str(tmp_path / "results" / "seven"), "--env", "pendulum", "--out", str(png)]
+    done = subprocess.run(traces, capture_output=True, text=True)
+    assert done.returncode == 2 and "add --train" in done.stderr, done.stderr
+    done = subprocess.run([*traces, "--train"], capture_output=True, text=True)
+    assert done.returncode == 0 and "1 encoders" in done.stdout, done.stderr
+    assert [f.name for f in cache.iterdir() if f.is_dir()] == [folder.name]  # pendulum's only
+    again = torch.load(folder / "model.pt", weights_only=True)
+    first = torch.load(tmp_path / "kept" / folder.name / "model.pt", weights_only=True)
+    assert again.keys() == first.keys() and again["model"].keys() == first["model"].keys()
+    assert all(torch.equal(again["model"][k], first["model"][k]) for k in first["model"])
+    assert torch.equal(again["mean"], first["mean"])
