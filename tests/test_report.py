@@ -224,7 +224,8 @@ def test_report_writes_its_summary_to_csv_or_parquet_and_refuses_other_files(wri
         for column in ("seeds_ok", "final_iqm", "final_low", "final_high", "auc_mean"):
             assert table[column].iloc[0] == pytest.approx(expected[column].iloc[0])
     (tmp_path / "d.csv").mkdir()
-    for bad, message in (("s.txt", "a .csv or .parquet file"), ("no/s.csv", "create it first"),
+    (tmp_path / "f").write_text("a file")
+    for bad, message in (("s.txt", "a .csv or .parquet file"), ("f/s.csv", "not a folder"),
                          ("d.csv", "is a folder"), ("rep/cells/s.parquet", "beside it")):
         done = report("--out", str(tmp_path / bad))
         assert done.returncode == 2 and message in done.stderr, done.stderr
