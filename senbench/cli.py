@@ -44,6 +44,8 @@ def user_errors(command):
 
 
 FIGURE_HELP = "Figure to write: a .png, .pdf or .svg file."
+Table = Annotated[Path | None, typer.Option(
+    "--out", help="Also write the numbers shown to this .csv or .parquet file (replacing it).")]
 Threshold = Annotated[list[str] | None, typer.Option(
     help="Frames to threshold (and the plots' dashed line) at this return instead of the "
          "env's: -150 (results of one env) or mountaincar=-150 (repeat for several envs).")]
@@ -167,31 +169,29 @@ def report(
     at: Annotated[list[int] | None, typer.Option(
         min=0, help="Also the mean evaluation return at this frame, over seeds (repeat for "
                     "several; a seed's last evaluation at or before it).")] = None,
-    export: Annotated[Path | None, typer.Option(
-        "--out", help="Also write the summary, a row per env, method and variant, to this "
-                      ".csv or .parquet file (replacing it).")] = None,
+    export: Table = None,
 ) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
+    from senbench.outputs import check_table_path, write_table
     from senbench.report import (
-        check_export_path,
-        export_summary,
         parse_thresholds,
         render,
         render_at,
         returns_at,
         summarize,
+        summary_table,
         with_thresholds,
     )
     from senbench.results import read_results
 
     thresholds = parse_thresholds(threshold or [])
     if export is not None:
-        check_export_path(export)
+        check_table_path(export)
     results = with_thresholds(read_results(results_dir, include_stale=all_cells), thresholds)
     summary = summarize(results)
     render(summary, out)
     if export is not None:
-        export_summary(summary, export)
+        write_table(summary_table(summary), export)
         out.print(f"summary written to {escape(str(export))}")
     if at:
         render_at(returns_at(results, sorted(set(at))), out)
@@ -210,24 +210,20 @@ def compare(
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
     threshold: Threshold = None,
+    export: Table = None,
 ) -> None:
     """A against B per env: IQM with CIs and the probability that A does better."""
-    from senbench.compare import pairs_across_folders, pairs_in_one_folder, render
-    from senbench.errors import ResultsError
+    from senbench.compare import comparison_table, pairs_for, render
+    from senbench.outputs import check_table_path, write_table
     from senbench.report import parse_thresholds
 
-    thresholds = parse_thresholds(threshold or [])
-    if results is not None:
-        pairs = pairs_in_one_folder(results, a, b, include_stale=all_cells,
-                                    thresholds=thresholds)
-    elif Path(a).is_dir() and Path(b).is_dir():
-        pairs = pairs_across_folders(Path(a), Path(b), include_stale=all_cells,
-                                     thresholds=thresholds)
-    else:
-        raise ResultsError("name two results folders, or two methods and the folder that "
-                           "holds them: senbench compare sen-sarsa sarsa-state --results "
-                           "results/paper-mountaincar")
+    if export is not None:
+        check_table_path(export)
+    pairs = pairs_for(a, b, results, all_cells, parse_thresholds(threshold or []))
     render(pairs, out)
+    if export is not None:
+        write_table(comparison_table(pairs), export)
+        out.print(f"comparison written to {escape(str(export))}")
 
 
 @app.command()

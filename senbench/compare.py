@@ -115,6 +115,34 @@ def compare(a: Side, b: Side) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def comparison_table(pairs: list[tuple[str, Side, Side]]) -> pd.DataFrame:
+    """``compare``'s numbers for every env as one table, as ``compare --out`` writes it: a
+    row per env and metric, each CI as two columns."""
+    frames = []
+    for env, a, b in pairs:
+        table = compare(a, b)
+        for side in ("a", "b"):
+            table[[f"{side}_low", f"{side}_high"]] = table.pop(f"{side}_ci").tolist()
+        frames.append(table.assign(env=env, a=a.name, b=b.name))
+    table = pd.concat(frames, ignore_index=True)
+    first = ["env", "a", "b", "metric"]
+    return table[first + [c for c in table.columns if c not in first]]
+
+
+def pairs_for(a: str, b: str, results: Path | None, include_stale: bool,
+              thresholds: dict[str | None, float]) -> list[tuple[str, Side, Side]]:
+    """What ``senbench compare A B`` compares: two methods of ``results``, or two folders."""
+    if results is not None:
+        return pairs_in_one_folder(results, a, b, include_stale=include_stale,
+                                   thresholds=thresholds)
+    if Path(a).is_dir() and Path(b).is_dir():
+        return pairs_across_folders(Path(a), Path(b), include_stale=include_stale,
+                                    thresholds=thresholds)
+    raise ResultsError("name two results folders, or two methods and the folder that holds "
+                       "them: senbench compare sen-sarsa sarsa-state --results "
+                       "results/paper-mountaincar")
+
+
 def _value(value: float, ci: tuple[float, float], digits: int) -> str:
     interval = "" if np.isnan(ci[0]) else f" [{ci[0]:,.{digits}f}, {ci[1]:,.{digits}f}]"
     return f"{value:,.{digits}f}{interval}"

@@ -12,6 +12,8 @@ from senbench.errors import OutputError
 
 FIGURES = (".png", ".pdf", ".svg")
 """What ``plot`` and ``show`` write: matplotlib's format follows the suffix."""
+TABLES = (".csv", ".parquet")
+"""What ``report --out`` and ``compare --out`` write."""
 
 
 def check_out_file(path: Path, suffixes: tuple[str, ...], option: str = "--out") -> None:
@@ -47,3 +49,22 @@ def written_whole(path: Path, option: str = "--out") -> Iterator[Path]:
         raise OutputError(f"{option} {path}: {exc.strerror or exc}") from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def check_table_path(path: Path) -> None:
+    """``check_out_file`` for a table; never inside a cells/ folder, where every Parquet
+    file is read as a cell."""
+    check_out_file(path, TABLES)
+    if path.parent.name == "cells":
+        raise OutputError(f"--out {path}: a cells/ folder holds only cell results; write "
+                          "the table beside it")
+
+
+def write_table(table, path: Path) -> None:
+    """A pandas DataFrame as .csv or .parquet (by the suffix), written whole."""
+    check_table_path(path)
+    with written_whole(path) as tmp:
+        if path.suffix.lower() == ".csv":
+            table.to_csv(tmp, index=False)
+        else:
+            table.to_parquet(tmp, index=False)

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from senbench.errors import OutputError, ResultsError
+from senbench.errors import ResultsError
 from senbench.metrics import FINAL_WINDOW, THRESHOLD_WINDOW, cell_metrics
-from senbench.outputs import check_out_file, written_whole
 from senbench.stats import iqm, stratified_ci
 
 METRICS = {  # summary prefix → (per-cell column, higher is better)
@@ -108,29 +105,13 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-EXPORT_FORMATS = (".csv", ".parquet")
-
-
-def check_export_path(path: Path) -> None:
-    """Refuse a file the summary cannot be written to, before anything is computed."""
-    check_out_file(path, EXPORT_FORMATS)
-    if path.parent.name == "cells":
-        raise OutputError(f"--out {path}: a cells/ folder holds only cell results; write "
-                          "the summary beside it")
-
-
-def export_summary(summary: pd.DataFrame, path: Path) -> None:
-    """``summarize``'s table as a file (.csv or .parquet, by its suffix): one row per env,
-    method and variant, with ``label`` as the report prints it first; written whole."""
-    check_export_path(path)
+def summary_table(summary: pd.DataFrame) -> pd.DataFrame:
+    """``summarize``'s table as ``report --out`` writes it: ``label``, as the report prints
+    it, first."""
     table = summary.copy()
     table.insert(0, "label", [label(m, v) for m, v in zip(table["method"], table["variant"],
                                                           strict=True)])
-    with written_whole(path) as tmp:
-        if path.suffix.lower() == ".csv":
-            table.to_csv(tmp, index=False)
-        else:
-            table.to_parquet(tmp, index=False)
+    return table
 
 
 def _mean(values: pd.Series) -> float:

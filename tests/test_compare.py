@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 
+import pandas as pd
 import pytest
 from rich.console import Console
 
@@ -132,3 +133,19 @@ def test_compare_two_folders_at_another_threshold(write_suite, tmp_path):
     assert "threshold -200" in console.export_text()
     with pytest.raises(ResultsError, match="names env pendulum"):
         pairs_across_folders(tmp_path / "a", tmp_path / "b", thresholds={"pendulum": -300.0})
+
+
+def test_compare_writes_its_numbers_to_a_table_file(tmp_path):
+    folder = write_fake(tmp_path, "cmp", ["a", "b"])
+    out = tmp_path / "p.csv"
+    done = cli("compare", "a", "b", "--results", str(folder), "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    table = pd.read_csv(out).set_index("metric")
+    assert list(table.columns[:3]) == ["env", "a", "b"]
+    assert table.loc["final", "p_better"] == pytest.approx(12.5 / 16)  # as worked above
+    assert table.loc["final", "a_iqm"] == pytest.approx(-106.5)
+    assert table.loc["final", "a_low"] <= -106.5 <= table.loc["final", "a_high"]
+    assert set(table.index) == {"final", "steps", "auc"}
+    done = cli("compare", "a", "b", "--results", str(folder), "--out", str(tmp_path / "p.txt"))
+    assert done.returncode == 2 and "name a .csv or .parquet file" in done.stderr
+    assert "P(A better)" not in done.stdout  # refused before comparing
