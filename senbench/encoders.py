@@ -132,7 +132,7 @@ class StateEncoder:
 
     def _network(self, x: Any) -> Any:
         """For an architecture that declares itself traceable, the model frozen into
-        TorchScript for this input shape (1.4x faster at batch 1, where a SEN-SARSA step
+        TorchScript for this input shape (1.4-1.6x faster at batch 1, where a SEN-SARSA step
         spends most of its time), kept only if it gives the eager model's outputs."""
         import torch
 
