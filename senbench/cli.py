@@ -442,6 +442,8 @@ def plot_traces_command(
     from senbench.plots import encoders_of_results, find_encoders, plot_traces
 
     check_out_file(png, FIGURES)
+    if train and results is None:
+        raise SenbenchError("--train trains the encoders of --results DIR: name the folder")
     if results is not None:
         paths = [*(paths or []), *encoders_of_results(
             results, env, train, lambda message: err.print(escape(message), highlight=False))]

@@ -37,10 +37,9 @@ def find_encoders(paths: list[Path], env: str | None) -> list[tuple[dict, pd.Dat
 def encoders_of_results(results: Path, env: str | None = None, train: bool = False,
                         log=lambda message: None) -> list[Path]:
     """The folders of the encoders a results folder's cells (of ``env``, if given) ran on,
-    in the ``encoders/``
-    cache beside the suites. One that is missing is trained from the cells' own spec if
-    ``train`` (its id is the spec's hash, so it is the same encoder), else an error says
-    so."""
+    in the ``encoders/`` cache beside the suites. One that is missing is trained from the
+    cells' own spec if ``train`` (its id is the spec's hash, so it is the same encoder),
+    else an error says so."""
     import json
 
     from senbench.results import find_cell_files, read_results
@@ -67,6 +66,9 @@ def encoders_of_results(results: Path, env: str | None = None, train: bool = Fal
 
         for encoder_id in missing:
             request = encoder_request(json.loads(configs[encoder_id]))
+            if request.id != encoder_id:  # the spec means something else to this build
+                raise ResultsError(f"encoder {encoder_id} of {results}: this senbench names "
+                                   f"its spec {request.id}, so it cannot train the same one")
             load_or_train(roots[0] / "encoders", request, registries(), log)
             folders[encoder_id] = cache_dir(roots[0] / "encoders", request)
     return list(folders.values())

@@ -59,3 +59,9 @@ def test_commands_refuse_an_out_file_before_doing_anything(tmp_path, args):
     assert "error: --out" in done.stderr or "error: --export" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
     assert sorted(tmp_path.rglob("*")) == before  # no study, no figure, no folder
+
+
+def test_plot_traces_train_needs_the_results_folder_it_trains_for(tmp_path):
+    done = cli("plot", "traces", "--train", "--out", str(tmp_path / "t.png"))
+    assert done.returncode == 2 and "--train trains the encoders of --results" in done.stderr
+    assert not list(tmp_path.iterdir())
