@@ -68,3 +68,15 @@ def write_table(table, path: Path) -> None:
             table.to_csv(tmp, index=False)
         else:
             table.to_parquet(tmp, index=False)
+
+
+def save_figure(fig, out: Path, dpi: int) -> None:
+    """A matplotlib figure to ``out`` (its format from the suffix), written whole; the
+    figure is closed either way."""
+    import matplotlib.pyplot as plt
+
+    try:
+        with written_whole(out) as tmp:
+            fig.savefig(tmp, format=out.suffix[1:].lower(), dpi=dpi)
+    finally:
+        plt.close(fig)

@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 
 from senbench.errors import ResultsError
-from senbench.outputs import written_whole
+from senbench.outputs import save_figure
 
 DASHES = ["-", (0, (6, 3)), (0, (1, 2)), (0, (6, 2, 1, 2))]
 """Line styles of the methods on a curves plot, in turn."""
@@ -111,11 +111,7 @@ def plot_traces(encoders: list[tuple[dict, pd.DataFrame]], out: Path) -> None:
     fig.suptitle(f"{env}: state encoder estimates vs the true observation "
                  f"({int(first['step'].max()) + 1} steps)")
     fig.tight_layout()
-    try:
-        with written_whole(out) as tmp:
-            fig.savefig(tmp, format=out.suffix[1:].lower(), dpi=110)
-    finally:
-        plt.close(fig)
+    save_figure(fig, out, 110)
 
 
 def learning_curves(results: pd.DataFrame) -> dict[str, dict[str, pd.DataFrame]]:
@@ -180,9 +176,5 @@ def plot_curves(results: pd.DataFrame, out: Path, title: str) -> list[str]:
         ax.legend(fontsize=8, loc="lower right")
     fig.suptitle(title)
     fig.tight_layout()
-    try:
-        with written_whole(out) as tmp:
-            fig.savefig(tmp, format=out.suffix[1:].lower(), dpi=110)
-    finally:
-        plt.close(fig)
+    save_figure(fig, out, 110)
     return list(curves)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from senbench.errors import SenbenchError
-from senbench.outputs import written_whole
+from senbench.outputs import save_figure
 from senbench.pixels import area_resize, headless_pygame, quantize, to_gray
 from senbench.specs import EnvSpec
 
@@ -73,9 +73,5 @@ def save_comparison(spec: EnvSpec, out: Path, count: int = 8, size: tuple[int, i
     fig.suptitle(f"{spec.name}: states ({labels}); mean |difference| of the last two rows "
                  f"{difference:.2f} grey levels", fontsize=10)
     fig.tight_layout()
-    try:
-        with written_whole(out) as tmp:
-            fig.savefig(tmp, format=out.suffix[1:].lower(), dpi=100)
-    finally:
-        plt.close(fig)
+    save_figure(fig, out, 100)
     return difference
