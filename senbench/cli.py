@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from senbench.errors import SenbenchError
-from senbench.outputs import FIGURES, check_out_file, written_whole
+from senbench.outputs import FIGURES, check_out_file
 
 app = typer.Typer(
     help="Benchmark data-efficient RL from images: state encoders (SEN-DRL) vs pixel RL.",
@@ -254,13 +254,11 @@ def tune(
 ) -> None:
     """Tune a method's hyperparameters with Optuna: seed-averaged trials, pruning on the
     seed-mean evaluation curve, a resumable shared study, and the best block exported."""
-    import yaml
-
     from senbench.plugins import registries
     from senbench.runner import usable_cores
     from senbench.tuning import (
-        best_block,
         check_objective,
+        export_best,
         make_pruner,
         make_sampler,
         run_study,
@@ -298,11 +296,7 @@ def tune(
             err.print(f"study '{name}' has no finished trial yet: nothing to export; run more "
                       "trials")
             raise typer.Exit(1)
-        text = yaml.safe_dump(best_block(done, tgt), sort_keys=False)
-        best = done.best_trial
-        with written_whole(export, "--export") as tmp:
-            tmp.write_text(f"# senbench tune: study '{name}', trial {best.number}, "
-                           f"{objective} {best.value:,.2f} over {seeds} seeds\n{text}")
+        export_best(done, tgt, export, name=name, objective=objective, seeds=seeds)
         out.print(f"best trial written to {escape(str(export))}")
 
 

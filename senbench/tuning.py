@@ -352,6 +352,21 @@ def best_block(study: Any, tgt: Target) -> dict[str, Any]:
     return {tgt.method: entry}
 
 
+def export_best(study: Any, tgt: Target, path: Path, *, name: str, objective: str,
+                seeds: int) -> None:
+    """Write :func:`best_block` to ``path`` (a ``--export`` .yaml file) whole, headed by a
+    comment naming the study, the trial and its objective value."""
+    import yaml
+
+    from senbench.outputs import written_whole
+
+    text = yaml.safe_dump(best_block(study, tgt), sort_keys=False)
+    best = study.best_trial
+    with written_whole(path, "--export") as tmp:
+        tmp.write_text(f"# senbench tune: study '{name}', trial {best.number}, "
+                       f"{objective} {best.value:,.2f} over {seeds} seeds\n{text}")
+
+
 def _plain(values: dict[str, Any]) -> dict[str, Any]:
     """numpy scalars → Python numbers, so that safe_dump writes plain YAML."""
     return {k: (v.item() if hasattr(v, "item") else v) for k, v in values.items()}
