@@ -33,10 +33,10 @@ def measure(agent_name: str, observation: str, env_name: str, extra: dict, out) 
     import numpy as np
     import torch
 
-    from senbench.observations import make_env
-    from senbench.pixels import PixelSpec
-    from senbench.plugins import registries
-    from senbench.specs import AgentContext
+    from senbench.observe.observations import make_env
+    from senbench.observe.pixels import PixelSpec
+    from senbench.plugin.manager import registries
+    from senbench.plugin.specs import AgentContext
 
     torch.set_num_threads(1)
     regs = registries()

@@ -23,12 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from senbench.encoders import EncoderRequest, StateEncoder, build_model, observation_bounds
-from senbench.observations import make_env
-from senbench.pixels import PixelSpec
-from senbench.plugins import registries
-from senbench.runner import run_suite, set_threads
-from senbench.specs import AgentContext
-from senbench.suite import load_suite
+from senbench.observe.observations import make_env
+from senbench.observe.pixels import PixelSpec
+from senbench.plugin.manager import registries
+from senbench.plugin.specs import AgentContext
+from senbench.run.processes import set_threads
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 PAIRS = [  # (agent, observation, env, frames to time): every pair the agents accept
     ("sarsa", "state", "mountaincar", 20_000),

@@ -15,10 +15,10 @@ import time
 import torch
 from agent_throughput import Count
 
-from senbench.observations import make_env
-from senbench.pixels import PixelSpec
-from senbench.plugins import registries
-from senbench.specs import AgentContext
+from senbench.observe.observations import make_env
+from senbench.observe.pixels import PixelSpec
+from senbench.plugin.manager import registries
+from senbench.plugin.specs import AgentContext
 
 CHOICES = [  # (label, frames, hyperparameters over the defaults)
     ("defaults (64x64, update every 4 frames, head 512)", PixelSpec(), {}),

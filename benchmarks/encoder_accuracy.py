@@ -15,10 +15,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from senbench.cli.plots import find_encoders, plot_traces
 from senbench.encoders import EncoderRequest, cache_dir, complete, load_or_train
-from senbench.pixels import PixelSpec
-from senbench.plots import find_encoders, plot_traces
-from senbench.plugins import registries
+from senbench.observe.pixels import PixelSpec
+from senbench.plugin.manager import registries
 
 CACHE = Path("results/encoders")
 FRACTIONS = (0.02, 0.10, 0.20, 1.00)

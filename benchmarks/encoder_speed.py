@@ -14,9 +14,9 @@ import numpy as np
 import torch
 
 from senbench.encoders import EncoderRequest, StateEncoder, build_model
-from senbench.pixels import PixelSpec
-from senbench.plugins import registries
-from senbench.runner import set_threads, usable_cores
+from senbench.observe.pixels import PixelSpec
+from senbench.plugin.manager import registries
+from senbench.run.processes import set_threads, usable_cores
 
 SECONDS = 3.0
 

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import ray
 
-from senbench.plugins import registries
-from senbench.runner import run_suite
-from senbench.suite import load_suite
+from senbench.plugin.manager import registries
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 GRID = textwrap.dedent("""\
     name: executors

@@ -23,8 +23,8 @@ import gymnasium  # noqa: E402
 import numpy as np  # noqa: E402
 
 import senbench_classic  # noqa: E402, F401 - registers the gymnasium ids
-from senbench.pixels import area_resize, quantize, to_gray  # noqa: E402
-from senbench.plugins import registries  # noqa: E402
+from senbench.observe.pixels import area_resize, quantize, to_gray  # noqa: E402
+from senbench.plugin.manager import registries  # noqa: E402
 from senbench_classic import renderers  # noqa: E402
 
 SIZE = (64, 64)

@@ -11,8 +11,8 @@ import itertools
 
 import numpy as np
 
-from senbench.plugins import registries
-from senbench.specs import AgentContext
+from senbench.plugin.manager import registries
+from senbench.plugin.specs import AgentContext
 
 BUDGET = 20_000
 

@@ -1,12 +1,16 @@
 """senbench: does learning a state encoder first beat end-to-end pixel RL, and by how much?
 
 A plugin writes ``import senbench`` and decorates its hooks with ``@senbench.hookimpl``.
+Everything a plugin needs is exported here, and nothing else: the built-in plugins under
+``plugins/`` import only these names, as a third-party plugin would.
 """
 
 from importlib.metadata import PackageNotFoundError, version
 
-from senbench.hookspecs import hookimpl
-from senbench.specs import (
+from senbench.observe.observations import PhysicalStateInfo, make_env
+from senbench.observe.pixels import FrameStack, PixelSpec, rendered_frames
+from senbench.plugin.hookspecs import hookimpl
+from senbench.plugin.specs import (
     Agent,
     AgentContext,
     AgentDefaults,
@@ -35,8 +39,13 @@ __all__ = [
     "AgentSpec",
     "EncoderSpec",
     "EnvSpec",
+    "FrameStack",
+    "PhysicalStateInfo",
+    "PixelSpec",
     "Recorder",
     "SamplerSpec",
     "__version__",
     "hookimpl",
+    "make_env",
+    "rendered_frames",
 ]

@@ -1,3 +1,3 @@
-from senbench.cli import app
+from senbench.cli.app import app
 
 app()

@@ -11,7 +11,7 @@ from pathlib import Path  # noqa: E402
 import plugin_for_tests  # noqa: E402
 import pytest  # noqa: E402
 
-from senbench import plugins  # noqa: E402
+from senbench.plugin import manager as plugins  # noqa: E402
 
 
 @pytest.fixture

@@ -2,7 +2,7 @@
 
 import pandas
 
-from senbench.results import read_results
+from senbench.results.store import read_results
 
 
 def curves_of(suite_results) -> pandas.DataFrame:

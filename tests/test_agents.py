@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from curves import curves_of
 
-from senbench.evaluation import CellRecorder
-from senbench.plugins import registries
-from senbench.runner import run_suite
-from senbench.specs import AgentContext
-from senbench.suite import load_suite
+from senbench.plugin.manager import registries
+from senbench.plugin.specs import AgentContext
+from senbench.run.evaluation import CellRecorder
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 
 class EpisodeLog:

@@ -8,13 +8,13 @@ import sys
 import pytest
 from suites_for_tests import SLOW
 
-from senbench import claims as claims_module
-from senbench.claims import CellClaims, lock_path, running_cells
-from senbench.plugins import registries
-from senbench.progress import GridProgress
-from senbench.results import cell_path, finished_status, write_cell
-from senbench.runner import run_suite
-from senbench.suite import load_suite
+from senbench.cli.progress import GridProgress
+from senbench.plugin.manager import registries
+from senbench.results.store import cell_path, finished_status, write_cell
+from senbench.run import claims as claims_module
+from senbench.run.claims import CellClaims, lock_path, running_cells
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 
 def test_a_held_cell_is_refused_until_its_holder_lets_go(tmp_path):
@@ -46,7 +46,7 @@ def test_a_cell_finished_meanwhile_is_refused_unless_forced(tmp_path):
 def test_a_killed_holder_holds_nothing(tmp_path):
     holder = subprocess.Popen(
         [sys.executable, "-c",
-         "import sys, time; from pathlib import Path; from senbench.claims import CellClaims;"
+         "import sys, time; from pathlib import Path; from senbench.run.claims import CellClaims;"
          f"assert CellClaims(Path({str(tmp_path)!r})).take('a'); print('held', flush=True);"
          "time.sleep(60)"],
         stdout=subprocess.PIPE, text=True)

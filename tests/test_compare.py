@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 from rich.console import Console
 
-from senbench.compare import Side, compare
-from senbench.plots import learning_curves
-from senbench.report import per_cell, summarize
-from senbench.results import read_results, write_cell
+from senbench.analysis.compare import Side, compare
+from senbench.analysis.summary import per_cell, summarize
+from senbench.cli.plots import learning_curves
+from senbench.results.store import read_results, write_cell
 
 # Each seed's curve: -200 at frame 0, then flat at its value v until the budget (4,000), so
 # final return = v; with threshold -110 the trailing mean of 3 stays above it from frame
@@ -113,11 +113,12 @@ def test_plot_curves_draws_every_method_on_the_shared_frames(tmp_path):
 
 
 def test_compare_two_folders_at_another_threshold(write_suite, tmp_path):
-    from senbench.compare import pairs_across_folders, render
+    from senbench.analysis.compare import pairs_across_folders
+    from senbench.cli.views import show_comparison
     from senbench.errors import ResultsError
-    from senbench.plugins import registries
-    from senbench.runner import run_suite
-    from senbench.suite import load_suite
+    from senbench.plugin.manager import registries
+    from senbench.run.runner import run_suite
+    from senbench.suite.expand import load_suite
 
     text = ("name: {name}\nenvs:\n  mountaincar: {{}}\nmethods:\n  sarsa-state: {{agent: "
             "sarsa}}\nseeds: 2\nbudget: 1000\neval: {{every: 500, episodes: 1}}\n")
@@ -129,7 +130,7 @@ def test_compare_two_folders_at_another_threshold(write_suite, tmp_path):
                                          thresholds={"mountaincar": -200.0})
     assert env == "mountaincar" and set(a.cells["steps_to_threshold"]) == {0.0}
     console = Console(record=True, width=200)
-    render([(env, a, b)], console)
+    show_comparison([(env, a, b)], console)
     assert "threshold -200" in console.export_text()
     with pytest.raises(ResultsError, match="names env pendulum"):
         pairs_across_folders(tmp_path / "a", tmp_path / "b", thresholds={"pendulum": -300.0})

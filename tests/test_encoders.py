@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 import torch
 
-from senbench.encoder_training import train
 from senbench.encoders import (
     EncoderRequest,
     StateEncoder,
@@ -16,13 +15,14 @@ from senbench.encoders import (
     complete,
     load,
     load_or_train,
+    train,
 )
-from senbench.observations import make_env
-from senbench.pixels import PixelSpec
-from senbench.plugins import registries
-from senbench.results import read_results
-from senbench.runner import run_suite
-from senbench.suite import load_suite
+from senbench.observe.observations import make_env
+from senbench.observe.pixels import PixelSpec
+from senbench.plugin.manager import registries
+from senbench.results.store import read_results
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 SMALL = PixelSpec(32, 32, 2)
 

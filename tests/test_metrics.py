@@ -2,7 +2,7 @@ import math
 
 import pytest
 
-from senbench.metrics import auc, final_return, steps_to_threshold
+from senbench.analysis.metrics import auc, final_return, steps_to_threshold
 
 STEPS = [0, 100, 200, 300, 400, 500]
 

@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from senbench.errors import OutputError
-from senbench.outputs import FIGURES, check_out_file, written_whole
+from senbench.results.outputs import FIGURES, check_out_file, written_whole
 
 
 def test_an_out_file_is_checked_for_its_kind_and_its_folder(tmp_path):

@@ -3,10 +3,10 @@ import pytest
 import torch
 from curves import curves_of
 
-from senbench.plugins import registries
-from senbench.runner import run_suite
-from senbench.specs import AgentContext
-from senbench.suite import load_suite
+from senbench.plugin.manager import registries
+from senbench.plugin.specs import AgentContext
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 from senbench_agents.dqn import DQNConfig, algorithms
 
 
@@ -132,8 +132,8 @@ def test_optimize_memory_usage_stores_each_frame_once():
                            features_dim=32)
 
         def make():
-            from senbench.observations import make_env
-            from senbench.pixels import PixelSpec
+            from senbench.observe.observations import make_env
+            from senbench.observe.pixels import PixelSpec
 
             return make_env(spec, "pixels", 200, {}, PixelSpec(40, 40, 2))
 

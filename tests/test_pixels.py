@@ -4,10 +4,10 @@ import gymnasium
 import numpy as np
 import pytest
 
-from senbench.observations import make_env
-from senbench.pixels import PixelSpec, area_resize
-from senbench.plugins import registries
-from senbench.show import compare, sample_states
+from senbench.cli.show import compare, sample_states
+from senbench.observe.observations import make_env
+from senbench.observe.pixels import PixelSpec, area_resize
+from senbench.plugin.manager import registries
 from senbench_classic.renderers import (
     draw_mountaincar,
     draw_pendulum,

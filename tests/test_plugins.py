@@ -4,10 +4,11 @@ import sys
 import pytest
 
 import senbench
-from senbench import EnvSpec, hookimpl, plugins
+from senbench import EnvSpec, hookimpl
 from senbench.errors import PluginError, UnknownNameError
-from senbench.hookspecs import register_agents
-from senbench.registry import Origin, Register, Registry
+from senbench.plugin import manager as plugins
+from senbench.plugin.hookspecs import register_agents
+from senbench.plugin.registry import Origin, Register, Registry
 
 
 def test_builtins_come_through_the_entry_point_group():
@@ -79,7 +80,7 @@ def test_every_hook_is_documented_in_the_readme():
     from pathlib import Path
 
     readme = (Path(__file__).parents[1] / "README.md").read_text()
-    hooks = [name for name in dir(senbench.hookspecs) if name.startswith("register_")]
+    hooks = [name for name in dir(senbench.plugin.hookspecs) if name.startswith("register_")]
     assert len(hooks) == 4
     for hook in hooks:
         assert f"`{hook}(register)`" in readme, f"{hook} is not documented in README.md"

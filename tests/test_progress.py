@@ -4,8 +4,8 @@ import io
 
 from rich.console import Console
 
-from senbench.cell import CellOutcome
-from senbench.progress import GridProgress
+from senbench.cli.progress import GridProgress
+from senbench.run.execute import CellOutcome
 
 
 def progress_into(log, terminal, clock):

@@ -13,13 +13,13 @@ import psutil
 import pytest
 from suites_for_tests import SEN_SARSA, SLOW
 
-from senbench import plugins
+from senbench.cli.progress import GridProgress
 from senbench.errors import SenbenchError
-from senbench.plugins import registries
-from senbench.progress import GridProgress
-from senbench.results import finished_status, read_results
-from senbench.runner import run_suite
-from senbench.suite import load_suite
+from senbench.plugin import manager as plugins
+from senbench.plugin.manager import registries
+from senbench.results.store import finished_status, read_results
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 ray = pytest.importorskip("ray", reason="Ray is not installed: pip install 'senbench[ray]'")
 

@@ -4,12 +4,12 @@ import sys
 import pandas as pd
 import pytest
 
+from senbench.analysis.summary import parse_thresholds, returns_at, summarize, with_thresholds
 from senbench.errors import ResultsError
-from senbench.plugins import registries
-from senbench.report import parse_thresholds, returns_at, summarize, with_thresholds
-from senbench.results import read_results
-from senbench.runner import run_suite
-from senbench.suite import load_suite
+from senbench.plugin.manager import registries
+from senbench.results.store import read_results
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 SUITE = """\
 name: rep
@@ -137,7 +137,7 @@ def test_variant_labels_show_in_brackets(write_suite, tmp_path):
 
 def test_status_counts_finished_failed_and_left_and_estimates_the_time(
         write_suite, tmp_path, test_agents):
-    from senbench.status import suite_status
+    from senbench.run.status import suite_status
 
     suite = load_suite(write_suite(SUITE.replace("seeds: 2", "seeds: 3")), registries())
     before = suite_status(suite, tmp_path)

@@ -10,13 +10,13 @@ import pytest
 from curves import curves_of
 from suites_for_tests import SEN_SARSA
 
-from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
-from senbench.plugins import registries
-from senbench.results import SCHEMA, current_cells, finished_status, read_results
-from senbench.reuse import copy_cell, curve_key, finished_cells
-from senbench.runner import run_suite
-from senbench.suite import load_suite
+from senbench.plugin.manager import registries
+from senbench.results.store import SCHEMA, current_cells, finished_status, read_results
+from senbench.run.claims import CellClaims
+from senbench.run.reuse import copy_cell, curve_key, finished_cells
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 MAIN = """\
 name: main

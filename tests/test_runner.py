@@ -13,10 +13,10 @@ from curves import curves_of
 from suites_for_tests import SLOW
 
 from senbench.errors import SenbenchError
-from senbench.plugins import registries
-from senbench.results import SCHEMA, current_cells, finished_status, read_results
-from senbench.runner import run_suite
-from senbench.suite import load_suite
+from senbench.plugin.manager import registries
+from senbench.results.store import SCHEMA, current_cells, finished_status, read_results
+from senbench.run.runner import run_suite
+from senbench.suite.expand import load_suite
 
 SARSA = """\
 name: small
@@ -210,7 +210,7 @@ def test_cells_fail_rather_than_hang_when_a_plugin_cannot_be_imported_by_workers
         write_suite, tmp_path):
     import types
 
-    from senbench import plugins
+    from senbench.plugin import manager as plugins
 
     module = types.ModuleType("a_module_that_is_nowhere")
     module.register_agents = plugin_for_tests.register_agents
@@ -232,7 +232,7 @@ def test_results_folder_that_is_a_file_is_a_clear_error(write_suite, tmp_path):
 
 
 def test_a_temp_file_of_a_killed_writer_not_yet_reaped_is_removed(tmp_path):
-    from senbench.results import remove_stray_temp_files
+    from senbench.results.store import remove_stray_temp_files
 
     writer = subprocess.Popen(["sleep", "30"])
     stray = tmp_path / f".abcdef.{writer.pid}.tmp"
@@ -247,7 +247,7 @@ def test_a_temp_file_of_a_killed_writer_not_yet_reaped_is_removed(tmp_path):
 
 
 def test_only_this_hosts_dead_writers_temp_files_are_removed(tmp_path):
-    from senbench.results import remove_stray_temp_files, writer_tag
+    from senbench.results.store import remove_stray_temp_files, writer_tag
 
     writer = subprocess.Popen(["sleep", "0"])
     writer.wait()  # a dead writer's pid
@@ -263,7 +263,7 @@ def test_only_this_hosts_dead_writers_temp_files_are_removed(tmp_path):
 
 
 def test_host_names_that_differ_give_different_temp_file_tags():
-    from senbench.results import writer_tag
+    from senbench.results.store import writer_tag
 
     hosts = ["node.1", "node_1", "node-1", "node_2e_1", "nöde.1", "n"]
     tags = [writer_tag(h).partition("-")[2] for h in hosts]
@@ -272,7 +272,7 @@ def test_host_names_that_differ_give_different_temp_file_tags():
 
 
 def test_a_dead_writers_temp_file_in_the_older_host_tag_is_removed_too(tmp_path, monkeypatch):
-    from senbench import results
+    from senbench.results import store as results
 
     writer = subprocess.Popen(["sleep", "0"])
     writer.wait()

@@ -6,14 +6,14 @@ import time
 
 import pytest
 
-from senbench import schedule as schedule_module
-from senbench.claims import CellClaims
 from senbench.errors import SenbenchError
-from senbench.plugins import registries
-from senbench.results import cells_dir, finished_status, write_cell
-from senbench.runner import run_suite
-from senbench.schedule import Schedule, parse_duration
-from senbench.suite import load_suite
+from senbench.plugin.manager import registries
+from senbench.results.store import cells_dir, finished_status, write_cell
+from senbench.run import schedule as schedule_module
+from senbench.run.claims import CellClaims
+from senbench.run.runner import run_suite
+from senbench.run.schedule import Schedule, parse_duration
+from senbench.suite.expand import load_suite
 
 # A slow method (≈ 2.4 s a cell: 600 frames of 4 ms) beside a fast one (well under 1 s).
 MIXED = """\

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from senbench.stats import (
+from senbench.analysis.stats import (
     improvement_ci,
     iqm,
     mean_ci,

@@ -4,8 +4,8 @@ import sys
 import pytest
 
 from senbench.errors import SuiteError
-from senbench.plugins import registries
-from senbench.suite import load_suite
+from senbench.plugin.manager import registries
+from senbench.suite.expand import load_suite
 
 GOOD = """\
 name: grid

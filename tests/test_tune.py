@@ -11,9 +11,10 @@ import pytest
 import yaml
 from suites_for_tests import SEN_SARSA
 
-from senbench import tuning
-from senbench.plugins import registries
-from senbench.suite import load_suite
+from senbench.cli.views import trials_table
+from senbench.plugin.manager import registries
+from senbench.suite.expand import load_suite
+from senbench.tune import study as tuning
 
 SUITE = """\
 name: tiny
@@ -201,21 +202,21 @@ def test_a_bad_option_is_refused_before_any_storage_is_made(tmp_path):
 
 def test_the_trials_table_lists_the_best_finished_trials_first_with_the_counts():
     study = optuna.create_study(direction="maximize")
-    assert tuning.trials_table(study, "s", "auc") is None  # nothing finished: no table
+    assert trials_table(study, "s", "auc") is None  # nothing finished: no table
     for value in (-300.0, -100.0, -200.0):
         study.enqueue_trial({"alpha": 0.5})
         study.optimize(lambda trial, v=value: trial.suggest_float("alpha", 0, 1) and v,
                        n_trials=1)
     pruned = study.ask({"alpha": optuna.distributions.FloatDistribution(0, 1)})
     study.tell(pruned, state=optuna.trial.TrialState.PRUNED)
-    table = tuning.trials_table(study, "s", "auc", top=2)
+    table = trials_table(study, "s", "auc", top=2)
     assert table.title == "study 's': best trials by auc; 3 complete, 1 pruned, 0 fail, 0 running"
     assert [c.header for c in table.columns] == ["trial", "auc", "alpha"]
     assert list(table.columns[0].cells) == ["1", "2"]  # -100 then -200; -300 is cut
     assert list(table.columns[1].cells) == ["-100.00", "-200.00"]
     minimize = optuna.create_study(direction="minimize")
     minimize.add_trials(study.trials[:3])
-    assert list(tuning.trials_table(minimize, "m", "auc").columns[0].cells) == ["0", "2", "1"]
+    assert list(trials_table(minimize, "m", "auc").columns[0].cells) == ["0", "2", "1"]
 
 
 def test_exporting_a_study_with_no_finished_trial_fails_and_writes_nothing(tmp_path):

@@ -13,8 +13,7 @@ from __future__ import annotations
 import gymnasium
 from gymnasium.envs.classic_control import MountainCarEnv, PendulumEnv
 
-from senbench.observations import PhysicalStateInfo
-from senbench.pixels import FrameStack, PixelSpec, rendered_frames
+from senbench import FrameStack, PhysicalStateInfo, PixelSpec, rendered_frames
 from senbench_classic.mountaincar import MOUNTAINCAR
 from senbench_classic.pendulum import PENDULUM
 

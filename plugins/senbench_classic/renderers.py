@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from senbench.drawing import (
+from senbench_classic.drawing import (
     FrameTable,
     capsule_sdf,
     convex_polygon_sdf,

@@ -8,10 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from senbench import SamplerSpec
-from senbench.observations import make_env
-from senbench.pixels import PixelSpec
-from senbench.specs import EnvSpec
+from senbench import EnvSpec, PixelSpec, SamplerSpec, make_env
 
 
 @dataclass

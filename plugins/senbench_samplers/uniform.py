@@ -8,9 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from senbench import SamplerSpec
-from senbench.pixels import PixelSpec
-from senbench.specs import EnvSpec
+from senbench import EnvSpec, PixelSpec, SamplerSpec
 
 
 @dataclass

@@ -1,0 +1,149 @@
+"""``senbench report``: a table per env, one row per method (and variant), over seeds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from senbench.analysis.metrics import cell_metrics
+from senbench.analysis.stats import iqm, stratified_ci
+from senbench.errors import ResultsError
+
+METRICS = {  # summary prefix → (per-cell column, higher is better)
+    "final": ("final_return", True),
+    "steps": ("steps_to_threshold", False),
+    "auc": ("auc", True),
+}
+
+
+def parse_thresholds(specs: list[str]) -> dict[str | None, float]:
+    """``--threshold`` values: ``-150`` (results of one env) or ``mountaincar=-150``."""
+    thresholds: dict[str | None, float] = {}
+    for spec in specs:
+        env, _, value = spec.rpartition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not np.isfinite(number) or (_ and not env):
+            raise ResultsError(f"--threshold {spec!r}: give a return, e.g. -150, or an env "
+                               "and a return, e.g. mountaincar=-150")
+        thresholds[env or None] = number
+    if None in thresholds and len(thresholds) > 1:
+        raise ResultsError("--threshold: give one return for every env, or ENV=RETURN for "
+                           "each, not both")
+    return thresholds
+
+
+def with_thresholds(results: pd.DataFrame, thresholds: dict[str | None, float],
+                    envs: set[str] | None = None) -> pd.DataFrame:
+    """``results`` with the threshold of each named env (``None``: the only env) replaced,
+    so that frames to threshold, the report's title and the plots' dashed line use it.
+    ``envs``: the envs the names are checked against (default: those of ``results``; two
+    folders compared give the envs of both)."""
+    if not thresholds:
+        return results
+    envs = sorted(envs if envs is not None else set(results["env"]))
+    if None in thresholds:
+        if len(envs) > 1:
+            raise ResultsError(f"these results hold envs {', '.join(envs)}: give --threshold "
+                               "ENV=RETURN for each one to change")
+        thresholds = {envs[0]: thresholds[None]}
+    unknown = sorted(set(thresholds) - set(envs))
+    if unknown:
+        raise ResultsError(f"--threshold names env {', '.join(unknown)}, which these results "
+                           f"do not hold; they hold: {', '.join(envs)}")
+    results = results.copy()
+    for env, value in thresholds.items():
+        results.loc[results["env"] == env, "threshold"] = value
+    return results
+
+
+def label(method: str, variant: str) -> str:
+    """A method as the report names it: ``sen-sarsa [encoder.fraction=0.2]``."""
+    return method + (f" [{variant}]" if variant else "")
+
+
+def per_cell(results: pd.DataFrame) -> pd.DataFrame:
+    """``cell_metrics`` with ``steps_to_threshold`` of a seed that never reached the
+    threshold set to the budget (censored: it needs at least that many frames), so that
+    every finished seed counts, and ``reached`` saying which did."""
+    cells = cell_metrics(results)
+    cells["reached"] = cells["steps_to_threshold"].notna()
+    ok = cells["status"] == "ok"
+    cells.loc[ok & ~cells["reached"], "steps_to_threshold"] = cells["budget"].astype(float)
+    return cells
+
+
+def summarize(results: pd.DataFrame) -> pd.DataFrame:
+    """Per env × method × variant, over finished seeds: for final return, frames to
+    threshold and AUC, the IQM with its 95% bootstrap interval and the mean ± std; how many
+    seeds finished and failed, and how many reached the threshold."""
+    cells = per_cell(results)
+    rows = []
+    keys = ["suite", "env", "method", "variant"]
+    for (suite, env, method, variant), group in cells.groupby(keys, sort=True):
+        ok = group[group["status"] == "ok"]
+        row = {
+            "suite": suite, "env": env, "method": method, "variant": variant,
+            "threshold": group["threshold"].iloc[0], "budget": int(group["budget"].max()),
+            "seeds_ok": len(ok), "seeds_failed": int((group["status"] != "ok").sum()),
+            "reached": int(ok["reached"].sum()),
+            "initial_mean": _mean(ok["initial_return"]),
+            "initial_std": _std(ok["initial_return"]),
+        }
+        for prefix, (column, _) in METRICS.items():
+            values = ok[column].to_numpy(dtype=float)
+            low, high = stratified_ci([values]) if len(values) else (np.nan, np.nan)
+            row.update({f"{prefix}_iqm": float(iqm(values)) if len(values) else np.nan,
+                        f"{prefix}_low": low, f"{prefix}_high": high,
+                        f"{prefix}_mean": _mean(ok[column]), f"{prefix}_std": _std(ok[column])})
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def summary_table(summary: pd.DataFrame) -> pd.DataFrame:
+    """``summarize``'s table as ``report --out`` writes it: ``label``, as the report prints
+    it, first."""
+    table = summary.copy()
+    table.insert(0, "label", [label(m, v) for m, v in zip(table["method"], table["variant"],
+                                                          strict=True)])
+    return table
+
+
+def _mean(values: pd.Series) -> float:
+    return float(values.mean()) if len(values) else float("nan")
+
+
+def _std(values: pd.Series) -> float:
+    return float(values.std(ddof=0)) if len(values) else float("nan")
+
+
+def returns_at(results: pd.DataFrame, frames: list[int]) -> pd.DataFrame:
+    """Per env × method × variant and frame: the mean and std over finished seeds of each
+    seed's evaluation return at that frame (its last evaluation at or before it; none for a
+    frame before its first evaluation or past its last), and how many seeds had one."""
+    ok_cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
+    keep = set(zip(ok_cells["suite"], ok_cells["cell_id"], strict=True))
+    evals = results[results["kind"] == "eval"].sort_values("step")
+    rows = []
+    keys = ["suite", "env", "method", "variant"]
+    for key, group in evals.groupby(keys, sort=True):
+        curves = [curve for (suite, cell_id), curve in group.groupby(["suite", "cell_id"])
+                  if (suite, cell_id) in keep]
+        for frame in frames:
+            values = np.array([_at(curve, frame) for curve in curves], dtype=float)
+            values = values[~np.isnan(values)]
+            rows.append(dict(zip(keys, key, strict=True), frame=frame, seeds=len(values),
+                             mean=float(values.mean()) if len(values) else np.nan,
+                             std=float(values.std()) if len(values) else np.nan))
+    return pd.DataFrame(rows, columns=[*keys, "frame", "seeds", "mean", "std"])
+
+
+def _at(curve: pd.DataFrame, frame: int) -> float:
+    steps = curve["step"].to_numpy()
+    if not len(steps) or frame < steps[0] or frame > steps[-1]:
+        return float("nan")
+    return float(curve["return"].to_numpy()[np.searchsorted(steps, frame, side="right") - 1])
+
+

@@ -1,0 +1,447 @@
+"""The ``senbench`` command line."""
+
+from __future__ import annotations
+
+import functools
+import os
+import signal
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from senbench.errors import SenbenchError
+from senbench.results.outputs import FIGURES, check_out_file
+
+app = typer.Typer(
+    help="Benchmark data-efficient RL from images: state encoders (SEN-DRL) vs pixel RL.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+# Piped output (make demo, CI logs) gets tables 140 columns wide rather than rich's 80;
+# COLUMNS still wins. Messages are never hard-wrapped, so they stay greppable.
+_width = None if sys.stdout.isatty() or os.environ.get("COLUMNS") else 140
+out = Console(width=_width, soft_wrap=True)
+err = Console(stderr=True, soft_wrap=True)
+
+
+def user_errors(command):
+    """A user's mistake prints its message and exits 2; a traceback would be a bug."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except SenbenchError as exc:
+            err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False)
+            raise typer.Exit(exc.exit_code) from None
+
+    return wrapper
+
+
+FIGURE_HELP = "Figure to write: a .png, .pdf or .svg file."
+Table = Annotated[Path | None, typer.Option(
+    "--out", help="Also write the numbers shown to this .csv or .parquet file (replacing it).")]
+Threshold = Annotated[list[str] | None, typer.Option(
+    help="Frames to threshold (and the plots' dashed line) at this return instead of the "
+         "env's: -150 (results of one env) or mountaincar=-150 (repeat for several envs).")]
+
+
+def _load(suite_file: Path):
+    from senbench.plugin.manager import registries
+    from senbench.suite.expand import load_suite
+
+    return load_suite(suite_file, registries())
+
+
+@app.command()
+@user_errors
+def validate(suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")]) -> None:
+    """Check a suite file and show the cells it expands into; runs nothing."""
+    suite = _load(suite_file)
+    model = suite.model
+    variants = {(c.env, c.method, c.variant) for c in suite.cells}
+    out.print(
+        f"[green]ok[/]: suite '{suite.name}': {len(suite.cells)} cells = "
+        f"{len(variants)} env × method × variant combinations × {len(model.seeds)} seeds"
+    )
+
+
+@app.command()
+@user_errors
+def status(
+    suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")],
+    results: Annotated[Path, typer.Option(help="Results root the suite runs under.")]
+    = Path("results"),
+    workers: Annotated[int, typer.Option(
+        "--workers", "-w", min=1, help="Workers to estimate the wall clock left for.")] = 1,
+) -> None:
+    """How many cells of a suite have finished, failed or are still to run, and the cell
+    time left, at the mean of the finished cells of each env, method and variant."""
+    from senbench.cli.views import show_status
+    from senbench.results.store import cells_dir
+    from senbench.run.status import suite_status
+
+    suite = _load(suite_file)
+    if not cells_dir(results, suite.name).is_dir():
+        err.print(f"[yellow]warning:[/] {escape(str(cells_dir(results, suite.name)))} does not "
+                  "exist: nothing of this suite has run under this results root (--results)",
+                  highlight=False)
+    show_status(suite_status(suite, results), f"suite '{suite.name}' under {results}", workers, out)
+
+
+@app.command()
+@user_errors
+def run(
+    suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")],
+    workers: Annotated[int | None, typer.Option(
+        "--workers", "-w", min=1, help="Cells run in parallel processes (default 1). With "
+        "--executor ray and no --address: the local Ray instance's CPUs (default: all).")] = None,
+    results: Annotated[Path, typer.Option(help="Results root; cells go to RESULTS/<suite>/.")]
+    = Path("results"),
+    force: Annotated[bool, typer.Option(help="Redo cells that already finished.")] = False,
+    executor: Annotated[str, typer.Option(
+        help="local: processes on this machine; ray: Ray tasks (pip install 'senbench\\[ray]')."
+    )] = "local",
+    address: Annotated[str | None, typer.Option(
+        help="With --executor ray: the cluster (auto, or ray://host:10001). Without it, a "
+             "local Ray instance with --workers CPUs is started for the run.")] = None,
+    retries: Annotated[int, typer.Option(
+        min=0, help="With --executor ray: how often a cell whose worker died is retried "
+                    "before it is recorded as failed.")] = 2,
+    method: Annotated[list[str] | None, typer.Option(
+        help="Run only this method's cells (repeat for several).")] = None,
+    env: Annotated[list[str] | None, typer.Option(
+        help="Run only this env's cells (repeat for several).")] = None,
+    seed: Annotated[list[int] | None, typer.Option(
+        help="Run only this seed's cells (repeat for several).")] = None,
+    variant: Annotated[list[str] | None, typer.Option(
+        help="Run only this variant's cells, as the report names it, e.g. "
+             "encoder.fraction=0.5 (repeat for several).")] = None,
+    time_limit: Annotated[str | None, typer.Option(
+        help="Start a cell only if it is expected to end within this time of the run's "
+             "start (2h30m, 150m, 90s), at the mean of the finished cells of its env, method "
+             "and variant; exit 75 with the rest left for the next run.")] = None,
+    reuse: Annotated[list[Path] | None, typer.Option(
+        help="Another suite's results folder: a cell it holds finished, the same in all "
+             "but its method and variant names, is copied, not run (repeat for several).")
+    ] = None,
+) -> None:
+    """Run every cell of a suite that has not finished yet (resumable).
+
+    --method, --env, --seed and --variant run a part of the grid; the rest stays as it is."""
+    from senbench.cli.progress import GridProgress, print_summary
+    from senbench.run.runner import EXECUTORS, run_suite
+    from senbench.run.schedule import parse_duration
+
+    if executor not in EXECUTORS:
+        raise SenbenchError(f"--executor {executor!r}: use one of {', '.join(EXECUTORS)}")
+    if address is not None and executor != "ray":
+        raise SenbenchError("--address names a Ray cluster: add --executor ray")
+    limit_s = None if time_limit is None else parse_duration(time_limit)
+    suite = _load(suite_file)
+    cells = suite.select(method or [], env or [], seed or [], variant or [])
+    signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
+    summary = run_suite(suite, results, workers=workers, force=force,
+                        progress=GridProgress(err), executor=executor, address=address,
+                        retries=retries, cells=cells, reuse=reuse or [],
+                        time_limit_s=limit_s)
+    print_summary(summary, suite.name, results / suite.name, len(suite.cells), time_limit,
+                  out, err)
+    if summary.exit_code:
+        raise typer.Exit(summary.exit_code)
+
+
+def _stop_like_ctrl_c(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+@app.command()
+@user_errors
+def report(
+    results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
+    all_cells: Annotated[bool, typer.Option(
+        "--all", help="Include cells of earlier versions of the suite.")] = False,
+    threshold: Threshold = None,
+    at: Annotated[list[int] | None, typer.Option(
+        min=0, help="Also the mean evaluation return at this frame, over seeds (repeat for "
+                    "several; a seed's last evaluation at or before it).")] = None,
+    export: Table = None,
+) -> None:
+    """Final return, frames to threshold and AUC per env and method, over seeds."""
+    from senbench.analysis.summary import (
+        parse_thresholds,
+        returns_at,
+        summarize,
+        summary_table,
+        with_thresholds,
+    )
+    from senbench.cli.views import show_report, show_returns_at
+    from senbench.results.outputs import check_table_path, write_table
+    from senbench.results.store import read_results
+
+    thresholds = parse_thresholds(threshold or [])
+    if export is not None:
+        check_table_path(export)
+    results = with_thresholds(read_results(results_dir, include_stale=all_cells), thresholds)
+    summary = summarize(results)
+    show_report(summary, out)
+    if export is not None:
+        write_table(summary_table(summary), export)
+        out.print(f"summary written to {escape(str(export))}")
+    if at:
+        show_returns_at(returns_at(results, sorted(set(at))), out)
+    if results.attrs.get("stale"):
+        err.print(f"left out {results.attrs['stale']} cells of earlier versions of the suite "
+                  "(--all includes them)")
+
+
+@app.command()
+@user_errors
+def compare(
+    a: Annotated[str, typer.Argument(help="A method of --results, or a results folder.")],
+    b: Annotated[str, typer.Argument(help="Another method of --results, or another folder.")],
+    results: Annotated[Path | None, typer.Option(
+        help="The results folder holding methods A and B.")] = None,
+    all_cells: Annotated[bool, typer.Option(
+        "--all", help="Include cells of earlier versions of the suite.")] = False,
+    threshold: Threshold = None,
+    export: Table = None,
+) -> None:
+    """A against B per env: IQM with CIs and the probability that A does better."""
+    from senbench.analysis.compare import comparison_table, pairs_for
+    from senbench.analysis.summary import parse_thresholds
+    from senbench.cli.views import show_comparison
+    from senbench.results.outputs import check_table_path, write_table
+
+    if export is not None:
+        check_table_path(export)
+    pairs = pairs_for(a, b, results, all_cells, parse_thresholds(threshold or []))
+    show_comparison(pairs, out)
+    if export is not None:
+        write_table(comparison_table(pairs), export)
+        out.print(f"comparison written to {escape(str(export))}")
+
+
+@app.command()
+@user_errors
+def tune(
+    suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")],
+    method: Annotated[str, typer.Option(help="The suite's method to tune.")],
+    trials: Annotated[int, typer.Option(min=1, help="Trials the study should hold in all "
+                                        "(finished and pruned); a rerun resumes.")],
+    env: Annotated[str | None, typer.Option(help="The env, if the method runs on several.")]
+    = None,
+    seeds: Annotated[int, typer.Option(min=1, help="Seeds per trial, run at once.")] = 3,
+    objective: Annotated[str, typer.Option(
+        help="auc, final or steps-to-threshold (mean over the trial's seeds).")] = "auc",
+    storage: Annotated[str | None, typer.Option(
+        help="Optuna storage URL (default: sqlite:///RESULTS/<suite>/tune.db).")] = None,
+    study: Annotated[str | None, typer.Option(
+        help="Study name (default: <method>-<env>-<objective>).")] = None,
+    sampler: Annotated[str, typer.Option(help="tpe or random.")] = "tpe",
+    pruner: Annotated[str, typer.Option(help="median, hyperband or none.")] = "median",
+    seed: Annotated[int | None, typer.Option(help="The sampler's seed.")] = None,
+    workers: Annotated[int, typer.Option(min=0, help="Processes per trial (0: one per "
+                                         "seed, all at once, so that the pruner sees every "
+                                         "seed at each evaluation early).")] = 0,
+    export: Annotated[Path | None, typer.Option(
+        help="Write the best trial as a suite 'methods:' block to this .yaml file.")] = None,
+    results: Annotated[Path, typer.Option(help="Results root.")] = Path("results"),
+) -> None:
+    """Tune a method's hyperparameters with Optuna: seed-averaged trials, pruning on the
+    seed-mean evaluation curve, a resumable shared study, and the best block exported."""
+    from senbench.cli.views import trials_table
+    from senbench.plugin.manager import registries
+    from senbench.run.processes import usable_cores
+    from senbench.tune.study import (
+        check_objective,
+        export_best,
+        make_pruner,
+        make_sampler,
+        run_study,
+        storage_for,
+        target,
+        trial_counts,
+    )
+
+    check_objective(objective)  # before a study is stored
+    if export is not None:
+        check_out_file(export, (".yaml", ".yml"), "--export")
+    suite = _load(suite_file)
+    regs = registries()
+    tgt = target(suite, method, env, regs)
+    name = study or f"{tgt.method}-{tgt.env}-{objective}"
+    chosen_sampler, chosen_pruner = make_sampler(sampler, seed), make_pruner(pruner, tgt)
+    processes = min(workers or seeds, seeds)
+    if processes > usable_cores():
+        err.print(f"[yellow]warning:[/] each trial runs {processes} seeds at once on "
+                  f"{usable_cores()} cores (--workers caps them)")
+    done = run_study(  # the storage is opened (a SQLite file created) only once all is checked
+        tgt, trials=trials, seeds=seeds, objective=objective,
+        storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
+        sampler=chosen_sampler, pruner=chosen_pruner,
+        results_root=results, workers=processes, regs=regs,
+        log=lambda message: err.print(escape(message), highlight=False))
+    table = trials_table(done, name, objective)
+    if table is None:
+        err.print(f"study '{name}': no trial finished yet ({trial_counts(done)})")
+    else:
+        out.print(table)
+    if export is not None:
+        if table is None:
+            err.print(f"study '{name}' has no finished trial yet: nothing to export; run more "
+                      "trials")
+            raise typer.Exit(1)
+        export_best(done, tgt, export, name=name, objective=objective, seeds=seeds)
+        out.print(f"best trial written to {escape(str(export))}")
+
+
+@app.command()
+@user_errors
+def show(
+    env: Annotated[str, typer.Argument(help="An env plugin's name.")],
+    png: Annotated[Path, typer.Option("--out", help=FIGURE_HELP)] = Path("frames.png"),
+    frames: Annotated[int, typer.Option(min=1, max=32, help="States to show.")] = 8,
+    height: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    width: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    seed: Annotated[int, typer.Option(help="Seed of the sampled states.")] = 0,
+) -> None:
+    """Sample frames of an env, with gymnasium's frame for the same state beside each."""
+    from senbench.cli.show import save_comparison
+    from senbench.plugin.manager import registries
+
+    spec = registries().envs.get(env)
+    check_out_file(png, FIGURES)
+    difference = save_comparison(spec, png, frames, (height, width), seed)
+    out.print(f"{escape(str(png))}: {frames} states of {env}; mean |difference| from "
+              f"gymnasium's resized frames: {difference:.2f} grey levels")
+
+
+@app.command()
+@user_errors
+def plugins() -> None:
+    """Every env, agent, encoder and sampler installed, and which distribution provided it."""
+    from senbench.cli.tables import render_plugins
+    from senbench.plugin.manager import registries
+
+    render_plugins(registries(), out)
+
+
+encoder_app = typer.Typer(help="State encoders: train, inspect.", no_args_is_help=True)
+plot_app = typer.Typer(help="PNG figures.", no_args_is_help=True)
+app.add_typer(encoder_app, name="encoder")
+app.add_typer(plot_app, name="plot")
+
+
+@encoder_app.command("train")
+@user_errors
+def encoder_train(
+    env: Annotated[str, typer.Option(help="Env plugin.")],
+    arch: Annotated[str, typer.Option(help="Encoder architecture.")] = "sen-resnet",
+    sampler: Annotated[str, typer.Option(help="Sampler of labelled frames.")] = "uniform",
+    samples: Annotated[int, typer.Option(min=10, help="Labelled pairs in the pool.")] = 50_000,
+    fraction: Annotated[float, typer.Option(min=0.0001, max=1.0,
+                                            help="Share of the pool trained on (d).")] = 0.2,
+    seed: Annotated[int, typer.Option(min=0)] = 0,
+    epochs: Annotated[int, typer.Option(min=1)] = 30,
+    batch_size: Annotated[int, typer.Option(min=2)] = 128,
+    learning_rate: Annotated[float, typer.Option(min=0.0)] = 1e-3,
+    patience: Annotated[int, typer.Option(min=1)] = 4,
+    test_samples: Annotated[int, typer.Option(min=10)] = 5000,
+    height: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    width: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    stack: Annotated[int, typer.Option(min=1, max=16)] = 2,
+    cache: Annotated[Path, typer.Option(help="Encoder cache.")] = Path("results/encoders"),
+    threads: Annotated[int | None, typer.Option(min=1, help="torch threads training runs on "
+                                                "(default 2); the weights depend on it, so "
+                                                "another count names another encoder.")]
+    = None,
+) -> None:
+    """Train a state encoder (or load it if this spec was trained before) and print its
+    held-out error per dimension."""
+    import pandas as pd
+
+    from senbench.cli.tables import render_encoder
+    from senbench.encoders import (
+        TRAINING_THREADS,
+        EncoderRequest,
+        Training,
+        cache_dir,
+        complete,
+        load_or_train,
+    )
+    from senbench.observe.pixels import PixelSpec
+    from senbench.plugin.manager import registries
+    regs = registries()
+    regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
+    request = EncoderRequest(
+        env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
+        samples=samples, fraction=fraction, seed=seed,
+        training=Training(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate,
+                          patience=patience, test_samples=test_samples,
+                          threads=threads or TRAINING_THREADS))
+    request = complete(request, regs)
+    load_or_train(cache, request, regs, err.print)
+    folder = cache_dir(cache, request)
+    render_encoder(pd.read_parquet(folder / "metrics.parquet"),
+                   f"{env}: {arch}, {request.train_size} of {samples} {sampler} samples "
+                   f"(d = {100 * fraction:g}%), held-out RMSE on {test_samples}", out)
+    out.print(f"encoder {request.id} → {folder}")
+
+
+@plot_app.command("curves")
+@user_errors
+def plot_curves_command(
+    results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
+    png: Annotated[Path | None, typer.Option(
+        "--out", help=FIGURE_HELP + " (default: RESULTS_DIR/curves.png)")] = None,
+    all_cells: Annotated[bool, typer.Option(
+        "--all", help="Include cells of earlier versions of the suite.")] = False,
+    threshold: Threshold = None,
+) -> None:
+    """Evaluation return against frames, mean and 95% CI band over seeds per method (the
+    paper's Figs. 4, 5, 8 and 9)."""
+    from senbench.analysis.summary import parse_thresholds, with_thresholds
+    from senbench.cli.plots import plot_curves
+    from senbench.results.store import read_results
+
+    png = png or results_dir / "curves.png"
+    check_out_file(png, FIGURES)
+    results = with_thresholds(read_results(results_dir, include_stale=all_cells),
+                              parse_thresholds(threshold or []))
+    suite = results["suite"].iloc[0]
+    envs = plot_curves(results, png, f"{suite}: learning curves")
+    out.print(f"{escape(str(png))}: {', '.join(envs)}")
+
+
+@plot_app.command("traces")
+@user_errors
+def plot_traces_command(
+    paths: Annotated[list[Path] | None, typer.Argument(
+        help="Encoder folders, or caches holding them.")] = None,
+    env: Annotated[str | None, typer.Option(help="Only this env's encoders.")] = None,
+    results: Annotated[Path | None, typer.Option(
+        help="The encoders a suite's cells used, from its results folder (and the "
+        "encoders/ cache beside it).")] = None,
+    png: Annotated[Path, typer.Option("--out", help=FIGURE_HELP)] = Path("traces.png"),
+    train: Annotated[bool, typer.Option(help="With --results: train the encoders missing "
+                                        "from the cache, from the cells' spec.")] = False,
+) -> None:
+    """Predicted vs true observation along a successful trajectory, one line per encoder
+    (the paper's Figs. 6 and 10)."""
+    from senbench.cli.plots import encoders_of_results, find_encoders, plot_traces
+
+    check_out_file(png, FIGURES)
+    if train and results is None:
+        raise SenbenchError("--train trains the encoders of --results DIR: name the folder")
+    if results is not None:
+        paths = [*(paths or []), *encoders_of_results(
+            results, env, train, lambda message: err.print(escape(message), highlight=False))]
+    encoders = find_encoders(paths or [Path("results/encoders")], env)
+    plot_traces(encoders, png)
+    out.print(f"{escape(str(png))}: {len(encoders)} encoders")

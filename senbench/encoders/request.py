@@ -1,0 +1,95 @@
+"""What names a state encoder: its request, with the one home of its training defaults.
+
+An encoder is named by everything that decides its weights — env, pixel spec, sampler and
+its config, pool size, the fraction of the pool it trains on (the paper's d%), architecture
+and its config, training settings, seed — hashed into an id.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from senbench.observe.pixels import PixelSpec
+
+TRAINING_THREADS = 2
+"""torch threads encoder training runs on unless told otherwise (``Training.threads``)."""
+
+
+@dataclass(frozen=True)
+class Training:
+    epochs: int = 30
+    """Most passes over the training set; early stopping usually ends sooner."""
+    batch_size: int = 128
+    learning_rate: float = 1e-3
+    validation: float = 0.1
+    """Share of the training set held out to pick the best epoch and stop early."""
+    patience: int = 4
+    """Epochs without a better validation loss before stopping."""
+    lr_decay: float = 0.3
+    """The learning rate is multiplied by this after an epoch without improvement."""
+    test_samples: int = 5000
+    """Size of the independent held-out set the reported errors come from."""
+    threads: int = TRAINING_THREADS
+    """torch threads training runs on. The weights depend on it (float sums split across
+    threads add up in another order), so it is fixed rather than the machine's core count:
+    the same spec trains the same encoder on a laptop and on a 64-core node."""
+
+
+@dataclass(frozen=True)
+class EncoderRequest:
+    env: str
+    pixels: PixelSpec
+    arch: str
+    sampler: str
+    samples: int
+    """Labelled pairs in the pool."""
+    fraction: float
+    """Share of the pool trained on: the paper's d% as a fraction."""
+    seed: int = 0
+    arch_config: dict[str, Any] = field(default_factory=dict)
+    sampler_config: dict[str, Any] = field(default_factory=dict)
+    training: Training = Training()
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @property
+    def id(self) -> str:
+        named = self.as_dict()
+        if named["training"]["threads"] == TRAINING_THREADS:  # ids from before the field
+            del named["training"]["threads"]
+        canonical = json.dumps(named, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(canonical.encode()).hexdigest()[:16]
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> EncoderRequest:
+        data = dict(data)
+        data["pixels"] = PixelSpec(**data["pixels"])
+        data["training"] = Training(**data.get("training", {}))
+        return cls(**data)
+
+    @property
+    def train_size(self) -> int:
+        return max(2, round(self.samples * self.fraction))
+
+
+def encoder_request(cell_config: dict[str, Any]) -> EncoderRequest:
+    """The encoder a cell's resolved config asks for."""
+    entry = cell_config["encoder"]
+    return EncoderRequest(
+        env=cell_config["env"]["name"],
+        pixels=PixelSpec(**cell_config["pixels"]),
+        arch=entry["arch"],
+        sampler=entry["sampler"],
+        samples=entry["samples"],
+        fraction=entry["fraction"],
+        seed=entry["seed"],
+        arch_config=entry["config"],
+        sampler_config=entry["sampler_config"],
+        training=Training(epochs=entry["epochs"], batch_size=entry["batch_size"],
+                          learning_rate=entry["learning_rate"], patience=entry["patience"],
+                          lr_decay=entry["lr_decay"], test_samples=entry["test_samples"]),
+    )

@@ -1,0 +1,206 @@
+"""Running one cell: build its observation pipeline and agent, learn, evaluate, write.
+
+A cell that raises is recorded as ``failed`` with its error text and the rows it had; a
+KeyboardInterrupt is not caught, so an interrupted cell writes nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import random
+import subprocess
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from senbench.encoders import encoder_request, load_or_train
+from senbench.observe.observations import make_env
+from senbench.observe.pixels import PixelSpec
+from senbench.plugin.manager import registries
+from senbench.plugin.specs import AgentContext
+from senbench.results.store import write_cell
+from senbench.run.evaluation import CellRecorder, Evaluator
+from senbench.suite.expand import Cell
+
+ProgressCallback = Callable[[str, int, float, float | None, int | None], None]
+"""(cell id, frames so far, frames/s, last evaluation return, the frame it was taken at)."""
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """What is the same for every cell of one run, gathered once."""
+
+    versions: dict[str, str]
+    git_commit: str | None
+    host: str
+    encoder_cache: Path = Path("results") / "encoders"
+    """Where trained state encoders are kept, shared by every suite under one results root."""
+
+    @classmethod
+    def gather(cls, encoder_cache: Path = Path("results") / "encoders") -> RunInfo:
+        def ver(dist: str) -> str:
+            try:
+                return version(dist)
+            except PackageNotFoundError:
+                return ""
+
+        dists = {"senbench": "senbench", "torch": "torch", "gymnasium": "gymnasium",
+                 "sb3": "stable-baselines3", "numpy": "numpy"}
+        return cls({k: ver(d) for k, d in dists.items()}, _git_commit(), platform.node(),
+                   Path(encoder_cache))
+
+
+def _git_commit() -> str | None:
+    try:
+        out = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=40"],
+                             capture_output=True, text=True, timeout=10, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None
+
+
+@dataclass(frozen=True)
+class CellOutcome:
+    cell_id: str
+    label: str
+    status: str
+    error: str | None
+    final_eval: float | None
+    wall_s: float
+
+
+def run_cell(cell: Cell, directory: Path, info: RunInfo,
+             progress: ProgressCallback | None = None) -> CellOutcome:
+    """Run a cell and write its result file."""
+    rows, outcome = execute_cell(cell, info, progress)
+    write_cell(directory, cell.id, rows)
+    return outcome
+
+
+def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = None
+                 ) -> tuple[list[dict[str, Any]], CellOutcome]:
+    """Run a cell: its result rows, and its outcome. Nothing is written here, so a cell can
+    run where the results are not (a Ray worker) and the caller writes them."""
+    started = datetime.now(UTC)
+    _reset_peak_rss()
+    recorder: CellRecorder | None = None
+    status, error = "ok", None
+    try:
+        cfg = cell.config
+        regs = registries()
+        env_spec = regs.envs.get(cfg["env"]["name"])
+        agent_spec = regs.agents.get(cfg["agent"])
+
+        pixels = PixelSpec(**cfg["pixels"]) if cfg.get("pixels") else None
+        encoder = None
+        if cfg.get("encoder"):
+            encoder = load_or_train(info.encoder_cache, encoder_request(cfg), regs)
+
+        def make() -> Any:
+            return make_env(env_spec, cfg["observation"], cfg["env"]["max_episode_steps"],
+                            cfg["env"]["options"], pixels, encoder)
+
+        _seed_everything(cell.seed)
+        ctx = AgentContext(agent_spec.config(**cfg["hyperparams"]), env_spec, make, cell.seed,
+                           cfg["threads"])
+        agent = agent_spec.make(ctx)
+        evaluator = Evaluator(make(), cfg["eval"]["episodes"], cell.seed)
+        report = None if progress is None else (lambda *a: progress(cell.id, *a))
+        recorder = CellRecorder(cfg["budget"], cfg["eval"]["every"],
+                                lambda: evaluator(agent.act), report)
+        agent.learn(cfg["budget"], recorder)
+        if recorder.steps < cfg["budget"]:
+            raise RuntimeError(f"agent '{cfg['agent']}' stopped after {recorder.steps} of "
+                               f"{cfg['budget']} frames")
+    except KeyboardInterrupt:
+        raise  # an interrupted cell writes nothing
+    except BaseException as exc:  # a cell's failure, even sys.exit, must not stop the grid
+        status = "failed"
+        error = "".join(traceback.format_exception(exc)[-12:]).strip()
+    ended = datetime.now(UTC)
+    wall = (ended - started).total_seconds()
+    rows = list(recorder.rows) if recorder else []
+    steps = recorder.steps if recorder else 0
+    rows.append({"kind": "cell", "step": steps, "return": None, "return_std": None,
+                 "length": None, "wall_s": wall})
+    common = cell_metadata(cell, info, status, error, started, ended, wall)
+    final = recorder.last_eval if recorder else None
+    return ([{**common, **row} for row in rows],
+            CellOutcome(cell.id, cell.label, status, error, final, wall))
+
+
+def cell_metadata(cell: Cell, info: RunInfo, status: str, error: str | None,
+                  started: datetime, ended: datetime, wall: float) -> dict[str, Any]:
+    cfg = cell.config
+    return {
+        "cell_id": cell.id, "suite": cell.suite, "env": cell.env, "method": cell.method,
+        "variant": cell.variant, "agent": cfg["agent"], "observation": cfg["observation"],
+        "seed": cell.seed, "threshold": float(cfg["env"]["threshold"]), "budget": cfg["budget"],
+        "status": status, "error": error, "config": json.dumps(cfg, sort_keys=True),
+        "hyperparams_source": cell.hyperparams_source,
+        "encoder_id": encoder_request(cfg).id if cfg.get("encoder") else None,
+        **{f"{k}_version": v for k, v in info.versions.items()},
+        "git_commit": info.git_commit, "host": info.host, "threads": cfg["threads"],
+        "started_at": started, "ended_at": ended, "cell_wall_s": wall,
+        "peak_rss_mb": _peak_rss_mb(),
+    }
+
+
+def _seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed)
+    try:
+        import torch
+    except ImportError:
+        return
+    torch.manual_seed(seed)
+
+
+def _reset_peak_rss() -> None:
+    """Linux lets a process reset its high-water mark, so the peak is per cell even when a
+    worker process runs many cells."""
+    try:
+        with open(f"/proc/{os.getpid()}/clear_refs", "w") as handle:
+            handle.write("5")
+    except OSError:
+        pass
+
+
+def _peak_rss_mb() -> float:
+    try:
+        with open(f"/proc/{os.getpid()}/status") as handle:
+            for line in handle:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, how: str) -> CellOutcome:
+    """A cell that ended without recording itself (its process died, or writing its result
+    failed): record it as failed, with no curve."""
+    rows, outcome = lost_cell(cell, info, how)
+    write_cell(directory, cell.id, rows)
+    return outcome
+
+
+def lost_cell(cell: Cell, info: RunInfo, how: str) -> tuple[list[dict[str, Any]], CellOutcome]:
+    """The rows and outcome of a cell that ended without a result of its own."""
+    error = f"the process running this cell {how}"
+    now = datetime.now(UTC)
+    row = {"kind": "cell", "step": 0, "return": None, "return_std": None, "length": None,
+           "wall_s": 0.0}
+    meta = cell_metadata(cell, info, "failed", error, now, now, 0.0)
+    return ([{**meta, **row, "peak_rss_mb": None}],
+            CellOutcome(cell.id, cell.label, "failed", error, None, 0.0))

@@ -1,0 +1,413 @@
+"""Suites: a YAML grid of comparisons, validated, expanded into cells with stable ids.
+
+A cell is one (env, method, variant, seed). Its id is a hash of its resolved config — the
+agent's full hyperparameters after defaults are applied, the env options, budget and
+evaluation — so the same comparison always lands in the same result file, and changing
+anything that could change the curve gives a new one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import reprlib
+import typing
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pydantic
+from pydantic import BaseModel
+
+from senbench.errors import SuiteError, unknown_name_message
+from senbench.observe.observations import OBSERVATIONS
+from senbench.plugin.registry import Registries
+from senbench.suite.schema import EncoderEntry, MethodEntry, SuiteModel
+from senbench.suite.source import Loc, SuiteSource, read_suite_file
+
+
+@dataclass(frozen=True)
+class Cell:
+    suite: str
+    env: str
+    method: str
+    variant: str
+    """``path=value`` pairs joined by ``,``; empty for a method's base variant."""
+    seed: int
+    config: dict[str, Any]
+    """The resolved config: everything that can change the curve."""
+    hyperparams_source: str = ""
+
+    @property
+    def id(self) -> str:
+        canonical = json.dumps(self.config, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(canonical.encode()).hexdigest()[:16]
+
+    @property
+    def label(self) -> str:
+        variant = f"[{self.variant}]" if self.variant else ""
+        return f"{self.env}/{self.method}{variant} seed {self.seed}"
+
+
+@dataclass
+class Suite:
+    model: SuiteModel
+    source: SuiteSource
+    cells: list[Cell]
+
+    @property
+    def name(self) -> str:
+        return self.model.name
+
+    def select(self, methods: list[str] = (), envs: list[str] = (), seeds: list[int] = (),
+               variants: list[str] = ()) -> list[Cell]:
+        """The cells of the given methods, envs, seeds and variants (each empty: all; a
+        variant as ``path=value`` pairs, e.g. ``encoder.fraction=0.5``). A name the suite
+        does not have is an error that lists those it has."""
+        for what, asked, have in (("method", methods, {c.method for c in self.cells}),
+                                  ("env", envs, {c.env for c in self.cells}),
+                                  ("seed", seeds, {c.seed for c in self.cells}),
+                                  ("variant", variants,
+                                   {c.variant for c in self.cells if c.variant})):
+            unknown = [a for a in asked if a not in have]
+            if unknown and not have:
+                raise SuiteError(f"suite '{self.name}' has no {what}s")
+            if unknown:
+                raise SuiteError(
+                    f"suite '{self.name}' has no {what} "
+                    f"{', '.join(repr(u) for u in unknown)}; it has: "
+                    f"{', '.join(str(h) for h in sorted(have))}")
+        picked = [c for c in self.cells
+                  if (not methods or c.method in methods) and (not envs or c.env in envs)
+                  and (not seeds or c.seed in seeds)
+                  and (not variants or c.variant in variants)]
+        if not picked:
+            raise SuiteError(f"suite '{self.name}' has no cell that is of the picked methods, "
+                             "envs, seeds and variants at once (is the variant another "
+                             "method's?)")
+        return picked
+
+
+def load_suite(path: str | Path, registries: Registries) -> Suite:
+    """Read, validate and expand a suite; raise SuiteError listing every problem found."""
+    source = read_suite_file(path)
+    if not isinstance(source.data, dict):
+        raise SuiteError(f"{source.path}: a suite is a YAML mapping (name, envs, methods, ...)")
+    try:
+        model = SuiteModel.model_validate(source.data)
+    except pydantic.ValidationError as exc:
+        raise SuiteError(_format_pydantic(exc, source)) from None
+    problems: list[str] = []
+    cells = _expand(model, source, registries, problems)
+    if problems:
+        raise SuiteError(_join(source, list(dict.fromkeys(problems))))
+    return Suite(model, source, cells)
+
+
+def _join(source: SuiteSource, problems: list[str]) -> str:
+    head = f"{source.path}: {len(problems)} problem{'s' if len(problems) > 1 else ''}"
+    return head + "\n" + "\n".join(f"  {p}" for p in problems)
+
+
+_REPR = reprlib.Repr()  # keyword arguments only from Python 3.12
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlist, _REPR.maxdict = 2, 60, 60, 4, 4
+
+
+def _show(value: Any) -> str:
+    """A short repr: a value built from YAML aliases can be recursive, or huge."""
+    return _REPR.repr(value)
+
+
+def _dotted(loc: Loc) -> str:
+    return ".".join(str(p) for p in loc if p != "")
+
+
+def _format_pydantic(exc: pydantic.ValidationError, source: SuiteSource) -> str:
+    problems = []
+    for err in exc.errors():
+        loc = tuple(err["loc"])
+        if err["type"] == "extra_forbidden":
+            known = _fields_at(loc[:-1])
+            msg = unknown_name_message("key", str(loc[-1]), known)
+        elif err["type"] == "missing":
+            msg = "required key is missing"
+        else:
+            msg = f"{err['msg']} (got {_show(err.get('input'))})"
+        problems.append(f"{source.where(loc)}: {_dotted(loc) or '(top level)'}: {msg}")
+    return _join(source, problems)
+
+
+def _fields_at(loc: Loc) -> list[str]:
+    """The keys allowed at ``loc`` in the suite schema, for "did you mean" on typos."""
+    model: Any = SuiteModel
+    rest = list(loc)
+    while rest:
+        part = rest.pop(0)
+        annotation = model.model_fields[part].annotation
+        while True:
+            args = [a for a in getattr(annotation, "__args__", ()) if a is not type(None)]
+            if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+                model = annotation
+                break
+            if getattr(annotation, "__origin__", None) is dict and rest:
+                rest.pop(0)  # a user-chosen key (an env or method name)
+                annotation = args[1]
+            elif args:
+                annotation = args[0]
+            else:
+                return []
+    return list(model.model_fields)
+
+
+def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: list[str]):
+    def problem(loc: Loc, msg: str) -> None:
+        problems.append(f"{source.where(loc)}: {_dotted(loc)}: {msg}")
+
+    envs = _check_envs(model, regs, problem)
+    for method_name in model.variants:
+        if method_name not in model.methods:
+            known = list(model.methods)
+            problem(("variants", method_name), unknown_name_message("method", method_name, known))
+    for method_name, ranges in model.tune.items():
+        if method_name not in model.methods:
+            known = list(model.methods)
+            problem(("tune", method_name), unknown_name_message("method", method_name, known))
+            continue
+        entry = model.methods[method_name]
+        searched = set()
+        if entry.agent in regs.agents:
+            searched |= set(regs.agents.get(entry.agent).search_space)
+        if entry.encoder is not None and entry.encoder.arch in regs.encoders:
+            searched |= {f"encoder.{name}"
+                         for name in regs.encoders.get(entry.encoder.arch).search_space}
+        for name in ranges:
+            if name not in searched:
+                problem(("tune", method_name, name), f"'{method_name}' searches "
+                        f"{', '.join(sorted(searched)) or 'nothing'}; not {name!r}")
+    cells: list[Cell] = []
+    for method_name, method in model.methods.items():
+        agent = _check_method(method_name, method, regs, problem)
+        if agent is None:
+            continue
+        loc = ("methods", method_name)
+        env_names = method.envs if method.envs is not None else list(model.envs)
+        for i, env_name in enumerate(env_names):
+            if env_name not in model.envs:
+                known = list(model.envs)
+                problem((*loc, "envs", i), unknown_name_message("suite env", env_name, known))
+                continue
+            if env_name not in envs:
+                continue  # already reported as an unknown env
+            env_spec, env_entry = envs[env_name]
+            if env_spec.actions not in agent.actions:
+                problem(loc, f"agent '{agent.name}' needs {'/'.join(sorted(agent.actions))} "
+                        f"actions but env '{env_name}' has {env_spec.actions} actions; restrict "
+                        "the method with 'envs: [...]'")
+                continue
+            env_config = {
+                "name": env_name,
+                "max_episode_steps": env_entry.max_episode_steps or env_spec.max_episode_steps,
+                "options": dict(env_entry.options),
+                "threshold": env_spec.threshold if env_entry.threshold is None
+                else env_entry.threshold,
+            }
+            pixels = None  # in the config (and the id) only where frames are drawn
+            if method.observation != "state":
+                pixels = (method.pixels or model.pixels).model_dump()
+            defaults = agent.defaults_for(env_name, method.observation)
+            source_note = defaults.source if defaults else "agent defaults"
+            for variant, overrides in _variants(model.variants.get(method_name, {})):
+                hyperparams, encoder, where = _apply_variant(
+                    method_name, method, overrides, problem
+                )
+                merged = {**(defaults.values if defaults else {}), **hyperparams}
+                resolved = _resolve_config(agent, merged, where, problem)
+                if encoder is not None:
+                    encoder = _resolve_encoder(encoder, regs, method_name, problem)
+                if resolved is None or (method.encoder is not None and encoder is None):
+                    continue
+                for seed in model.seeds:
+                    config = {
+                        "env": env_config,
+                        "method": method_name,
+                        "agent": agent.name,
+                        "observation": method.observation,
+                        "hyperparams": resolved,
+                        "encoder": encoder,
+                        "pixels": pixels,
+                        "variant": overrides,
+                        "seed": seed,
+                        "budget": env_entry.budget or model.budget,
+                        "eval": model.eval.model_dump(),
+                        "threads": model.threads,
+                    }
+                    cells.append(Cell(model.name, env_name, method_name, variant, seed, config,
+                                      source_note))
+    seen: dict[str, Cell] = {}
+    for cell in cells:
+        if cell.id in seen:
+            problems.append(f"{source.where(('seeds',))}: {seen[cell.id].label} and "
+                            f"{cell.label} resolve to the same config; remove the duplicate "
+                            "seed, variant value or method")
+        seen.setdefault(cell.id, cell)
+    return cells
+
+
+def _check_envs(model: SuiteModel, regs: Registries, problem) -> dict[str, tuple]:
+    envs = {}
+    for env_name, entry in model.envs.items():
+        if env_name not in regs.envs:
+            problem(("envs", env_name), unknown_name_message("env", env_name, regs.envs.names()))
+            continue
+        spec = regs.envs.get(env_name)
+        envs[env_name] = (spec, entry)
+        for key, value in entry.options.items():
+            loc = ("envs", env_name, "options", key)
+            if key not in spec.options:
+                problem(loc, unknown_name_message(f"{env_name} option", key, list(spec.options)))
+            elif not _fits(value, spec.options[key]):
+                problem(loc, f"expected {spec.options[key].__name__}, got {value!r}")
+        budget = entry.budget or model.budget
+        if model.eval.every > budget:
+            problem(("eval", "every"), f"evaluates every {model.eval.every} frames but the "
+                    f"budget on {env_name} is {budget}; lower eval.every")
+    return envs
+
+
+def _check_method(name: str, method: MethodEntry, regs: Registries, problem):
+    """The method's agent spec, or None after reporting why the method cannot run."""
+    loc = ("methods", name)
+    if method.agent not in regs.agents:
+        problem((*loc, "agent"), unknown_name_message("agent", method.agent, regs.agents.names()))
+        return None
+    agent = regs.agents.get(method.agent)
+    if method.observation not in OBSERVATIONS:
+        message = unknown_name_message("observation", method.observation, list(OBSERVATIONS))
+        problem((*loc, "observation"), message)
+        return None
+    if method.observation not in agent.observations:
+        problem((*loc, "observation"), f"agent '{agent.name}' does not learn on "
+                f"'{method.observation}'; it learns on {', '.join(sorted(agent.observations))}")
+        return None
+    if (method.observation == "encoded") != (method.encoder is not None):
+        problem((*loc, "encoder"), "an encoder is needed exactly when observation is 'encoded'")
+        return None
+    if method.encoder is not None:
+        for key, registry in (("arch", regs.encoders), ("sampler", regs.samplers)):
+            value = getattr(method.encoder, key)
+            if value not in registry:
+                message = unknown_name_message(registry.kind, value, registry.names())
+                problem((*loc, "encoder", key), message)
+                return None
+    return agent
+
+
+def _apply_variant(method_name: str, method: MethodEntry, overrides: dict[str, Any], problem):
+    """The method's hyperparams and encoder with a variant's values in, and a function
+    giving where in the file each hyperparameter was set."""
+    hyperparams = dict(method.hyperparams)
+    encoder = method.encoder.model_dump() if method.encoder else None
+    from_variant: dict[str, Loc] = {}
+    for path, value in overrides.items():
+        head, _, field = path.partition(".")
+        if head == "hyperparams" and field:
+            hyperparams[field] = value
+            from_variant[field] = ("variants", method_name, path)
+        elif head == "encoder" and encoder is not None and field in encoder:
+            encoder[field] = value
+        else:
+            problem(("variants", method_name, path), "a variant sweeps 'hyperparams.<name>', or "
+                    "'encoder.<field>' of a method that has an encoder")
+
+    if encoder is not None and overrides:
+        try:  # a swept value gets the same strict checks as one written in the method
+            encoder = EncoderEntry.model_validate(encoder).model_dump()
+        except pydantic.ValidationError as exc:
+            for err in exc.errors():
+                path = f"encoder.{err['loc'][0]}" if err["loc"] else "encoder"
+                problem(("variants", method_name, path),
+                        f"{err['msg']} (got {_show(err.get('input'))})")
+            encoder = None
+
+    def where(key: str) -> Loc:
+        return from_variant.get(key, ("methods", method_name, "hyperparams", key))
+
+    return hyperparams, encoder, where
+
+
+def _variants(axes: dict[str, list[Any]]):
+    if not axes:
+        yield "", {}
+        return
+    paths = list(axes)
+    for values in itertools.product(*(axes[p] for p in paths)):
+        overrides = dict(zip(paths, values, strict=True))
+        yield ",".join(f"{p}={v}" for p, v in overrides.items()), overrides
+
+
+def _resolve_config(agent, params: dict[str, Any], where, problem) -> dict[str, Any] | None:
+    return _resolve_dataclass(agent.config, f"{agent.name} hyperparameter", params, where,
+                              problem)
+
+
+def _resolve_encoder(encoder: dict[str, Any], regs: Registries, method_name: str,
+                     problem) -> dict[str, Any] | None:
+    """The encoder entry with its architecture's and sampler's configs checked and
+    completed with their defaults."""
+    resolved = dict(encoder)
+    for key, registry, name in (("config", regs.encoders, encoder["arch"]),
+                                ("sampler_config", regs.samplers, encoder["sampler"])):
+        spec = registry.get(name)
+
+        def where(field: str, key: str = key) -> Loc:
+            return ("methods", method_name, "encoder", key, field)
+
+        values = _resolve_dataclass(spec.config, f"{name} setting", encoder[key], where, problem)
+        if values is None:
+            return None
+        resolved[key] = values
+    return resolved
+
+
+def _resolve_dataclass(config_cls, what: str, params: dict[str, Any], where,
+                       problem) -> dict[str, Any] | None:
+    """A config dataclass from its defaults and ``params``, each value checked strictly
+    against the field's type (no "2000" for an int, no true for a number), then the
+    config's own ``__post_init__`` checks."""
+    hints = typing.get_type_hints(config_cls)
+    fields = [f.name for f in dataclasses.fields(config_cls)]
+    values, ok = {}, True
+    for key, value in params.items():
+        if key not in fields:
+            problem(where(key), unknown_name_message(what, key, fields))
+            ok = False
+            continue
+        try:
+            values[key] = pydantic.TypeAdapter(hints[key]).validate_python(value, strict=True)
+        except pydantic.ValidationError as exc:
+            err = exc.errors()[0]
+            problem(where(key), f"expected {_type_name(hints[key])}: {err['msg']} "
+                    f"(got {_show(value)})")
+            ok = False
+    if not ok:
+        return None
+    try:
+        config = config_cls(**values)
+    except (ValueError, TypeError) as exc:
+        culprit = next((k for k in values if k in str(exc)), None)
+        loc = where(culprit) if culprit else where("")[:-1]
+        problem(loc, str(exc))
+        return None
+    return dataclasses.asdict(config)
+
+
+def _type_name(annotation: Any) -> str:
+    return getattr(annotation, "__name__", None) or str(annotation)
+
+
+def _fits(value: Any, expected: type) -> bool:
+    if expected is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    return isinstance(value, expected)

@@ -1,0 +1,383 @@
+"""``senbench tune``: an Optuna study over one method of a suite.
+
+A trial is the method on one env with hyperparameters drawn from its agent's declared
+``search_space`` (minus whatever the suite fixes in the method's ``hyperparams``), run over
+K seeds at once, one process each, exactly as ``senbench run`` runs cells. As the seeds
+evaluate, the mean of their evaluation returns at each evaluation frame goes to the pruner,
+which can stop the trial there (its cells are killed). The objective, once every seed has
+finished, is the mean over seeds of the chosen metric: AUC, final return, or frames to
+threshold (a seed that never reaches it counts as the budget).
+
+Tuning seeds are 1,000,000 + i, apart from any suite's own seeds, so that a method is not
+tuned on the seeds it is then reported on.
+
+The study lives in Optuna storage: by default a SQLite file, ``results/<suite>/tune.db``.
+Running the command again resumes the study (``--trials`` is the total to reach, counting
+finished and pruned trials), and several processes on one storage share it. On an RDB
+storage (SQLite included) each running trial sends a heartbeat; a trial whose process was
+killed is marked failed by the next process that starts, instead of staying RUNNING.
+"""
+
+from __future__ import annotations
+
+import copy
+import fcntl
+import os
+import platform
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from senbench.analysis.summary import per_cell
+from senbench.errors import SuiteError
+from senbench.plugin.specs import Choice, Float, Int, Param  # noqa: F401 - Float, Int re-exported
+from senbench.results.store import read_results, remove_stray_temp_files
+from senbench.run.execute import RunInfo
+from senbench.run.processes import run_processes
+from senbench.run.progress import NullProgress
+from senbench.run.runner import prepare_encoders
+from senbench.run.summary import RunSummary
+from senbench.suite.expand import Cell, Suite
+
+TUNE_SEED_OFFSET = 1_000_000
+ENCODER = "encoder."
+"""Prefix of the encoder architecture's parameters in a study."""
+OBJECTIVES = {"auc": "maximize", "final": "maximize", "steps-to-threshold": "minimize"}
+HEARTBEAT_S = 30
+GRACE_S = 90
+
+
+def check_objective(objective: str) -> None:
+    if objective not in OBJECTIVES:
+        raise SuiteError(f"--objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
+
+
+@dataclass(frozen=True)
+class Target:
+    """What a study tunes: one method of a suite on one env, with a cell to copy."""
+
+    suite: Suite
+    method: str
+    env: str
+    template: Cell
+    space: dict[str, Param]
+    fixed: dict[str, Any]
+
+
+def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
+    cells = suite.select(methods=[method])
+    envs = sorted({c.env for c in cells})
+    if env is None:
+        if len(envs) > 1:
+            raise SuiteError(f"method '{method}' runs on {', '.join(envs)}: pick one with --env")
+        env = envs[0]
+    cells = [c for c in cells if c.env == env]
+    if not cells:
+        raise SuiteError(f"method '{method}' does not run on env '{env}'; it runs on "
+                         f"{', '.join(envs)}")
+    if any(c.variant for c in cells):
+        raise SuiteError(f"method '{method}' has variants; tune a method without variants "
+                         "(copy it under another name with the values fixed)")
+    template = cells[0]
+    agent = regs.agents.get(template.config["agent"])
+    entry = suite.model.methods[method]
+    fixed = dict(entry.hyperparams)
+    space = {name: param for name, param in agent.search_space.items() if name not in fixed}
+    if entry.encoder is not None:  # the encoder's own settings, unless the suite sets them
+        arch = regs.encoders.get(entry.encoder.arch)
+        space.update({f"{ENCODER}{name}": param for name, param in arch.search_space.items()
+                      if name not in entry.encoder.config})
+    for name, narrower in suite.model.tune.get(method, {}).items():
+        where = f"tune.{method}.{name}"
+        if name not in space:
+            raise SuiteError(f"{where}: not searched ("
+                             + ("the method fixes it in hyperparams" if name in fixed else
+                                f"agent '{agent.name}' searches {', '.join(space)}") + ")")
+        space[name] = narrow(space[name], narrower, where)
+    unknown = set(suite.model.tune) - set(suite.model.methods)
+    if unknown:
+        raise SuiteError(f"tune: {', '.join(sorted(unknown))} is not a method of the suite")
+    if not space:
+        raise SuiteError(f"agent '{agent.name}' declares no search space"
+                         + (" left once the suite's hyperparams are fixed" if fixed else ""))
+    return Target(suite, method, env, template, space, fixed)
+
+
+def narrow(param: Param, narrower: Any, where: str) -> Param:
+    """The declared range cut to the suite's: within it, never wider."""
+    if isinstance(param, Choice):
+        if narrower.low is not None or narrower.high is not None or narrower.values is None:
+            raise SuiteError(f"{where}: a choice is narrowed with 'values', a subset of "
+                             f"{list(param.values)}")
+        extra = [v for v in narrower.values if v not in param.values]
+        if extra:
+            raise SuiteError(f"{where}: {extra} not among {list(param.values)}")
+        return Choice(tuple(narrower.values))
+    if narrower.values is not None:
+        raise SuiteError(f"{where}: a number is narrowed with 'low' and 'high'")
+    low = param.low if narrower.low is None else narrower.low
+    high = param.high if narrower.high is None else narrower.high
+    if not param.low <= low <= high <= param.high:
+        raise SuiteError(f"{where}: [{low}, {high}] must lie within [{param.low}, "
+                         f"{param.high}] with low <= high")
+    if isinstance(param, Int):
+        if low != int(low) or high != int(high):
+            raise SuiteError(f"{where}: whole numbers, got [{low}, {high}]")
+        return Int(int(low), int(high), param.log)
+    return Float(float(low), float(high), param.log)
+
+
+def suggest(trial: Any, space: dict[str, Param]) -> dict[str, Any]:
+    params: dict[str, Any] = {}
+    for name, param in space.items():
+        if isinstance(param, Float):
+            params[name] = trial.suggest_float(name, param.low, param.high, log=param.log)
+        elif isinstance(param, Int):
+            params[name] = trial.suggest_int(name, param.low, param.high, log=param.log)
+        elif isinstance(param, Choice):
+            params[name] = trial.suggest_categorical(name, list(param.values))
+        else:
+            raise TypeError(f"{name}: not a Float, Int or Choice: {param!r}")
+    return params
+
+
+def trial_cells(tgt: Target, params: dict[str, Any], seeds: int, regs: Any) -> list[Cell]:
+    """The K cells of a trial: the template's config with the trial's hyperparameters, on
+    the tuning seeds. Hyperparameters the agent refuses (its own range checks, e.g. a
+    batch larger than a rollout) raise ValueError."""
+    agent = regs.agents.get(tgt.template.config["agent"])
+    encoder_params = {k[len(ENCODER):]: v for k, v in params.items() if k.startswith(ENCODER)}
+    hyperparams = {**tgt.template.config["hyperparams"],
+                   **{k: v for k, v in params.items() if not k.startswith(ENCODER)}}
+    resolved = agent.config(**hyperparams)  # raises on a bad combination
+    hyperparams = {k: getattr(resolved, k) for k in hyperparams}
+    encoder = copy.deepcopy(tgt.template.config.get("encoder"))
+    if encoder_params:
+        import dataclasses
+
+        arch = regs.encoders.get(encoder["arch"])
+        encoder["config"] = dataclasses.asdict(arch.config(**{**encoder["config"],
+                                                              **encoder_params}))
+    cells = []
+    for i in range(seeds):
+        config = copy.deepcopy(tgt.template.config)
+        config["hyperparams"] = hyperparams
+        config["encoder"] = copy.deepcopy(encoder)
+        config["seed"] = TUNE_SEED_OFFSET + i
+        cells.append(Cell(tgt.suite.name, tgt.env, tgt.method, "", config["seed"], config,
+                          tgt.template.hyperparams_source))
+    return cells
+
+
+class PruningProgress:
+    """Receives the cells' progress; when every seed has evaluated at a frame, reports the
+    mean to the trial and raises TrialPruned if the pruner says so."""
+
+    def __init__(self, trial: Any, cell_ids: list[str], log: Any):
+        self.trial = trial
+        self.evals: dict[str, dict[int, float]] = {cell_id: {} for cell_id in cell_ids}
+        self.reported: set[int] = set()
+        self._log = log
+
+    def log(self, message: str) -> None:
+        self._log(message)
+
+    def warn(self, message: str) -> None:
+        self._log(f"warning: {message}")
+
+    def started(self, cell_id: str, label: str, budget: int) -> None:
+        pass
+
+    def finished(self, outcome: Any) -> None:
+        pass
+
+    def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None,
+               eval_step: int | None = None) -> None:
+        import optuna
+
+        if last_eval is None or eval_step is None or cell_id not in self.evals:
+            return
+        self.evals[cell_id][eval_step] = last_eval
+        shared = set.intersection(*(set(curve) for curve in self.evals.values()))
+        for step in sorted(shared - self.reported):
+            self.reported.add(step)
+            value = float(np.nanmean([curve[step] for curve in self.evals.values()]))
+            self.trial.report(value, step)
+            if self.trial.should_prune():
+                raise optuna.TrialPruned(f"pruned at frame {step:,} (seed mean {value:.1f})")
+
+
+def objective_value(directory: Path, objective: str) -> float:
+    cells = per_cell(read_results(directory))
+    failed = cells[cells["status"] != "ok"]
+    if len(failed):
+        raise RuntimeError(f"{len(failed)} of the trial's cells failed; see {directory}")
+    column = {"auc": "auc", "final": "final_return",
+              "steps-to-threshold": "steps_to_threshold"}[objective]
+    return float(np.nanmean(cells[column].to_numpy(dtype=float)))
+
+
+def storage_for(url: str | None, default_file: Path) -> Any:
+    """An Optuna storage: RDB URLs (SQLite included) with heartbeats, so that a killed
+    trial is marked failed rather than left RUNNING; other URLs as Optuna reads them."""
+    import optuna
+
+    if url is None:
+        default_file.parent.mkdir(parents=True, exist_ok=True)
+        url = f"sqlite:///{default_file}"
+    scheme = url.split(":", 1)[0].split("+", 1)[0]
+    if scheme in {"sqlite", "postgresql", "mysql", "oracle", "mssql"}:
+        import sqlalchemy.exc
+
+        warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
+        def create() -> Any:
+            return optuna.storages.RDBStorage(
+                url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
+                engine_kwargs={"connect_args": {"timeout": 60}} if scheme == "sqlite" else None)
+
+        if scheme == "sqlite" and url.startswith("sqlite:///"):
+            # Two processes creating a new database's tables at once collide: the first
+            # creates them under a lock, the second then finds them.
+            lock_path = Path(url[len("sqlite:///"):] + ".lock")
+            with open(lock_path, "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                return create()
+        for attempt in range(10):  # a server database: retry the same collision
+            try:
+                return create()
+            except sqlalchemy.exc.SQLAlchemyError:
+                if attempt == 9:
+                    raise
+                time.sleep(0.2 + 0.3 * attempt)
+    return url
+
+
+def make_sampler(name: str, seed: int | None) -> Any:
+    import optuna
+
+    if name == "tpe":
+        return optuna.samplers.TPESampler(seed=seed)
+    if name == "random":
+        return optuna.samplers.RandomSampler(seed=seed)
+    raise SuiteError(f"--sampler must be tpe or random, got {name!r}")
+
+
+def make_pruner(name: str, tgt: Target) -> Any:
+    import optuna
+
+    every = tgt.template.config["eval"]["every"]
+    budget = tgt.template.config["budget"]
+    if name == "median":
+        # as rl-baselines3-zoo: no pruning in the first 5 trials nor the first third of a
+        # trial, where returns still say little (MountainCar sits at -200 early on)
+        return optuna.pruners.MedianPruner(n_startup_trials=5,
+                                           n_warmup_steps=max(every, budget // 3))
+    if name == "hyperband":
+        return optuna.pruners.HyperbandPruner(min_resource=every, max_resource=budget)
+    if name == "none":
+        return optuna.pruners.NopPruner()
+    raise SuiteError(f"--pruner must be median, hyperband or none, got {name!r}")
+
+
+def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: Any,
+              study_name: str, sampler: Any, pruner: Any, results_root: Path, workers: int,
+              regs: Any, log: Any) -> Any:
+    import optuna
+
+
+    check_objective(objective)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)  # senbench logs each trial itself
+    study = optuna.create_study(study_name=study_name, storage=storage, sampler=sampler,
+                                pruner=pruner, direction=OBJECTIVES[objective],
+                                load_if_exists=True)
+    stored = study.user_attrs.get("objective")
+    if stored is not None and stored != objective:
+        raise SuiteError(f"study '{study_name}' optimises {stored}, not {objective}: pass "
+                         f"--objective {stored}, or --study with a new name")
+    study.set_user_attr("objective", objective)
+    study.set_user_attr("suite", tgt.suite.name)
+    study.set_user_attr("method", tgt.method)
+    study.set_user_attr("env", tgt.env)
+    info = RunInfo.gather(results_root / "encoders")
+    base = results_root / tgt.suite.name / "tune" / study_name
+    counted = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
+
+    def run_trial(trial: optuna.Trial) -> float:
+        trial.set_user_attr("host", platform.node())
+        trial.set_user_attr("pid", os.getpid())
+        params = suggest(trial, tgt.space)
+        try:
+            cells = trial_cells(tgt, params, seeds, regs)
+        except ValueError as exc:  # the agent refuses this combination
+            trial.set_user_attr("refused", str(exc))
+            raise optuna.TrialPruned(f"refused by the agent: {exc}") from None
+        directory = base / f"trial-{trial.number}" / "cells"
+        directory.mkdir(parents=True, exist_ok=True)
+        remove_stray_temp_files(directory)
+        summary = RunSummary(total=len(cells))
+        cells = prepare_encoders(cells, directory, info, NullProgress(), summary)
+        if summary.failed:  # the trial's encoder could not be trained
+            raise RuntimeError(f"{summary.failed[0].error}")
+        progress = PruningProgress(trial, [c.id for c in cells], log)
+        run_processes(cells, directory, info, min(workers, len(cells)), progress,
+                      summary)
+        if summary.failed:
+            raise RuntimeError(f"{len(summary.failed)} cells failed: "
+                               f"{summary.failed[0].error}")
+        value = objective_value(directory.parent, objective)
+        log(f"trial {trial.number}: {objective} {value:,.1f}")
+        return value
+
+    already = len(study.get_trials(deepcopy=False, states=counted))
+    if already < trials:
+        study.optimize(run_trial, n_trials=trials - already, catch=(RuntimeError,),
+                       callbacks=[optuna.study.MaxTrialsCallback(trials, states=counted)])
+    return study
+
+
+def best_block(study: Any, tgt: Target) -> dict[str, Any]:
+    """The method's suite entry with the best trial's hyperparameters: a ``methods:`` block
+    a suite uses unchanged."""
+    entry = tgt.suite.model.methods[tgt.method].model_dump(exclude_unset=True)
+    best = _plain(study.best_trial.params)
+    entry["hyperparams"] = {**tgt.fixed,
+                            **{k: v for k, v in best.items() if not k.startswith(ENCODER)}}
+    tuned = {k[len(ENCODER):]: v for k, v in best.items() if k.startswith(ENCODER)}
+    if tuned:
+        entry["encoder"]["config"] = {**entry["encoder"].get("config", {}), **tuned}
+    return {tgt.method: entry}
+
+
+def export_best(study: Any, tgt: Target, path: Path, *, name: str, objective: str,
+                seeds: int) -> None:
+    """Write :func:`best_block` to ``path`` (a ``--export`` .yaml file) whole, headed by a
+    comment naming the study, the trial and its objective value."""
+    import yaml
+
+    from senbench.results.outputs import written_whole
+
+    text = yaml.safe_dump(best_block(study, tgt), sort_keys=False)
+    best = study.best_trial
+    with written_whole(path, "--export") as tmp:
+        tmp.write_text(f"# senbench tune: study '{name}', trial {best.number}, "
+                       f"{objective} {best.value:,.2f} over {seeds} seeds\n{text}")
+
+
+def _plain(values: dict[str, Any]) -> dict[str, Any]:
+    """numpy scalars → Python numbers, so that safe_dump writes plain YAML."""
+    return {k: (v.item() if hasattr(v, "item") else v) for k, v in values.items()}
+
+
+def trial_counts(study: Any) -> dict[str, int]:
+    """How many of the study's trials finished, were pruned, failed or are running."""
+    import optuna
+
+    states = optuna.trial.TrialState
+    return {s.name.lower(): sum(t.state == s for t in study.trials)
+            for s in (states.COMPLETE, states.PRUNED, states.FAIL, states.RUNNING)}
+
+
