@@ -29,7 +29,7 @@ from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
 from senbench.run.processes import set_threads
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 PAIRS = [  # (agent, observation, env, frames to time): every pair the agents accept
     ("sarsa", "state", "mountaincar", 20_000),

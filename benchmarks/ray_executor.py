@@ -16,7 +16,7 @@ import ray
 
 from senbench.plugin.manager import registries
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 GRID = textwrap.dedent("""\
     name: executors

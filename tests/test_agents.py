@@ -8,7 +8,7 @@ from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
 from senbench.run.evaluation import CellRecorder
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 
 class EpisodeLog:

@@ -14,7 +14,7 @@ from senbench.results.store import cell_path, finished_status, write_cell
 from senbench.run import claims as claims_module
 from senbench.run.claims import CellClaims, lock_path, running_cells
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 
 def test_a_held_cell_is_refused_until_its_holder_lets_go(tmp_path):

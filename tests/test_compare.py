@@ -118,7 +118,7 @@ def test_compare_two_folders_at_another_threshold(write_suite, tmp_path):
     from senbench.errors import ResultsError
     from senbench.plugin.manager import registries
     from senbench.run.runner import run_suite
-    from senbench.suite.expand import load_suite
+    from senbench.suite import load_suite
 
     text = ("name: {name}\nenvs:\n  mountaincar: {{}}\nmethods:\n  sarsa-state: {{agent: "
             "sarsa}}\nseeds: 2\nbudget: 1000\neval: {{every: 500, episodes: 1}}\n")

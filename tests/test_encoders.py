@@ -22,7 +22,7 @@ from senbench.observe.pixels import PixelSpec
 from senbench.plugin.manager import registries
 from senbench.results.store import read_results
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 SMALL = PixelSpec(32, 32, 2)
 
@@ -248,12 +248,10 @@ def test_swept_encoder_values_are_checked_like_written_ones(write_suite):
     with pytest.raises(SuiteError, match="variants.sen-sarsa.encoder.fraction"):
         load_suite(write_suite(bad), registries())
     same = SEN.replace("encoder.fraction: [0.5, 1.0]", "encoder.fraction: [1]")
-    from senbench.encoders import encoder_request
-
     swept = load_suite(write_suite(same), registries()).cells[0]
     written = load_suite(write_suite(SEN.replace("variants:\n  sen-sarsa:\n    encoder.fraction:"
                                                  " [0.5, 1.0]\n", "")), registries()).cells[0]
-    assert encoder_request(swept.config).id == encoder_request(written.config).id
+    assert swept.encoder_request().id == written.encoder_request().id
 
 
 def test_too_few_samples_to_train_on_is_a_clear_error(tmp_path):

@@ -1,44 +1,100 @@
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
+import stable_baselines3.dqn.dqn
 import torch
 from curves import curves_of
+from stable_baselines3.common.logger import Logger
 
 from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
-from senbench_agents.dqn import DQNConfig, algorithms
+from senbench.suite import load_suite
+from senbench_agents.dqn import DQNConfig
 
 
-def test_double_dqn_target_uses_the_online_argmax_and_the_target_value():
-    torch.manual_seed(0)
-    TargetDQN, DoubleDQN = algorithms()
-    spec = registries().envs.get("mountaincar")
-    models = [cls("MlpPolicy", spec.make(), learning_starts=0, seed=0, device="cpu")
-              for cls in (TargetDQN, DoubleDQN)]
+def dqn_and_ddqn(**hyperparams):
+    """SB3 models of the dqn and ddqn agents on the MountainCar state, with the same
+    weights and a target network that disagrees with the online one."""
+    regs = registries()
+    spec = regs.envs.get("mountaincar")
+    models = []
+    for name in ("dqn", "ddqn"):
+        agent = regs.agents.get(name)
+        cfg = agent.config(learning_starts=0, buffer_size=100, **hyperparams)
+        model = agent.make(AgentContext(cfg, spec, spec.make, 0, 1)).model
+        model.set_logger(Logger(folder=None, output_formats=[]))
+        models.append(model)
     dqn, ddqn = models
-    ddqn.policy.load_state_dict(dqn.policy.state_dict())
-    with torch.no_grad():  # make the two networks disagree
-        for p in dqn.q_net_target.parameters():
-            p.add_(torch.randn_like(p))
-        ddqn.q_net_target.load_state_dict(dqn.q_net_target.state_dict())
-
-    class Batch:
-        next_observations = torch.tensor([[-0.5, 0.0], [0.3, 0.05], [-1.1, -0.06]])
-        rewards = torch.full((3, 1), -1.0)
-        dones = torch.tensor([[0.0], [0.0], [1.0]])
-
+    generator = torch.Generator().manual_seed(0)
     with torch.no_grad():
-        online = dqn.q_net(Batch.next_observations)
-        target = dqn.q_net_target(Batch.next_observations)
-        y_dqn = dqn.td_target(Batch, 0.9)
-        y_ddqn = ddqn.td_target(Batch, 0.9)
+        for p in dqn.policy.q_net_target.parameters():
+            p.add_(torch.randn(p.shape, generator=generator))
+    ddqn.policy.load_state_dict(dqn.policy.state_dict())
+    return dqn, ddqn
+
+
+def td_target_of_sb3_train(model, batch, monkeypatch) -> torch.Tensor:
+    """The TD target SB3's own DQN.train regresses on, for one update on ``batch``."""
+    targets = []
+    loss = stable_baselines3.dqn.dqn.F.smooth_l1_loss
+
+    def recording_loss(current, target):
+        targets.append(target)
+        return loss(current, target)
+
+    monkeypatch.setattr(stable_baselines3.dqn.dqn.F, "smooth_l1_loss", recording_loss)
+    monkeypatch.setattr(model.replay_buffer, "sample", lambda *args, **kwargs: batch)
+    model.train(gradient_steps=1, batch_size=len(batch.rewards))
+    [target] = targets
+    return target
+
+
+def test_double_dqn_target_uses_the_online_argmax_and_the_target_value(monkeypatch):
+    dqn, ddqn = dqn_and_ddqn(gamma=0.9)
+    next_obs = torch.tensor([[-0.5, 0.0], [0.3, 0.05], [-1.1, -0.06]])
+    batch = SimpleNamespace(observations=next_obs.flip(0), actions=torch.tensor([[0], [1], [2]]),
+                            next_observations=next_obs, rewards=torch.full((3, 1), -1.0),
+                            dones=torch.tensor([[0.0], [0.0], [1.0]]), discounts=None)
+    with torch.no_grad():
+        online = dqn.q_net(next_obs)
+        target = dqn.policy.q_net_target(next_obs)
+    y_dqn = td_target_of_sb3_train(dqn, batch, monkeypatch)
+    y_ddqn = td_target_of_sb3_train(ddqn, batch, monkeypatch)
+    not_done = torch.tensor([[0.9], [0.9], [0.0]])
     chosen = target.gather(1, online.argmax(1, keepdim=True))
-    assert torch.allclose(y_ddqn, -1 + torch.tensor([[0.9], [0.9], [0.0]]) * chosen)
-    assert torch.allclose(y_dqn, -1 + torch.tensor([[0.9], [0.9], [0.0]]) *
-                          target.max(1, keepdim=True).values)
+    assert torch.allclose(y_ddqn, -1 + not_done * chosen)
+    assert torch.allclose(y_dqn, -1 + not_done * target.max(1, keepdim=True).values)
     assert not torch.allclose(y_dqn[:2], y_ddqn[:2])  # the crafted batch tells them apart
     assert torch.equal(y_dqn[2], y_ddqn[2])  # a terminal transition has no next value
+
+
+@pytest.mark.parametrize("tau", [1.0, 0.5])
+def test_double_dqn_target_update_moves_only_the_target_network(tau):
+    _, ddqn = dqn_and_ddqn(tau=tau, target_update_interval=1)
+    online, target = ddqn.policy.q_net, ddqn.policy.q_net_target
+    assert type(target) is type(online)  # the policy keeps the real target network
+    assert [id(p) for p in ddqn.q_net_target.parameters()] == [id(p) for p in
+                                                                target.parameters()]
+    assert [id(b) for b in ddqn.q_net_target.buffers()] == [id(b) for b in target.buffers()]
+    before = [p.clone() for p in online.parameters()]
+    old_target = [p.clone() for p in target.parameters()]
+    ddqn._on_step()  # SB3's target update, due at every step with an interval of 1
+    for now, was, new, old in zip(online.parameters(), before, target.parameters(),
+                                  old_target, strict=True):
+        assert torch.equal(now, was)
+        assert torch.allclose(new, tau * was + (1 - tau) * old)
+
+
+def test_double_dqn_keeps_its_target_through_save_and_load(tmp_path):
+    dqn, ddqn = dqn_and_ddqn()
+    assert ddqn.policy.state_dict().keys() == dqn.policy.state_dict().keys()
+    ddqn.save(tmp_path / "ddqn.zip")
+    loaded = type(ddqn).load(tmp_path / "ddqn.zip", device="cpu")
+    assert type(loaded.q_net_target) is type(ddqn.q_net_target)
+    assert loaded.q_net_target.online is loaded.q_net
+    assert loaded.q_net_target.target is loaded.policy.q_net_target
 
 
 def test_dqn_config_checks_its_ranges():
@@ -116,7 +172,7 @@ def test_dqn_takes_its_pixel_defaults_on_pixels_and_its_state_defaults_on_the_st
         budget: 100
         eval: {every: 100, episodes: 1}
         """), registries())
-    params = {c.config["method"]: c.config["hyperparams"] for c in suite.cells}
+    params = {c.method: c.hyperparams for c in suite.cells}
     assert params["dqn-pixels"]["train_freq"] == 4 and params["dqn-pixels"]["batch_size"] == 32
     assert params["dqn-pixels"]["learning_starts"] == 10_000
     assert params["dqn-state"]["train_freq"] == 16 and params["dqn-state"]["batch_size"] == 128

@@ -19,7 +19,7 @@ from senbench.plugin import manager as plugins
 from senbench.plugin.manager import registries
 from senbench.results.store import finished_status, read_results
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 ray = pytest.importorskip("ray", reason="Ray is not installed: pip install 'senbench[ray]'")
 

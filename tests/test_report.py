@@ -9,7 +9,7 @@ from senbench.errors import ResultsError
 from senbench.plugin.manager import registries
 from senbench.results.store import read_results
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 SUITE = """\
 name: rep

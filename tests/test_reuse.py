@@ -14,9 +14,9 @@ from senbench.errors import SenbenchError
 from senbench.plugin.manager import registries
 from senbench.results.store import SCHEMA, current_cells, finished_status, read_results
 from senbench.run.claims import CellClaims
-from senbench.run.reuse import copy_cell, curve_key, finished_cells
+from senbench.run.reuse import copy_cell, finished_cells
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 MAIN = """\
 name: main
@@ -66,7 +66,7 @@ def test_a_cell_the_same_but_for_its_names_is_copied_and_equals_running_it(
         row = table.slice(0, 1).to_pylist()[0]
         assert (row["cell_id"], row["suite"], row["method"], row["variant"]) == (
             cell.id, "sweep", "sarsa-swept", "hyperparams.alpha=0.5")
-        assert json.loads(row["config"]) == cell.config
+        assert json.loads(row["config"]) == cell.config()
     frame = read_results(tmp_path / "results" / "sweep")
     assert len(frame["cell_id"].unique()) == 4
     assert current_cells(tmp_path / "results" / "sweep") == {c.id for c in sweep.cells}
@@ -123,7 +123,7 @@ def test_a_source_rewritten_after_the_scan_is_not_copied(write_suite, tmp_path):
     sweep = load(write_suite, SWEEP, "sweep.yaml")
     found = finished_cells([tmp_path / "results" / "main"])
     cell = next(c for c in sweep.cells if c.variant == "hyperparams.alpha=0.5")
-    source = found[curve_key(cell.config)]
+    source = found[cell.id]
     set_column(pq.read_table(source), "status", "failed", source)  # as a failed --force rerun
     assert copy_cell(cell, source, tmp_path / "out", tmp_path / "enc") is None
     assert not (tmp_path / "out").exists()

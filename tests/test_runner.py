@@ -16,7 +16,7 @@ from senbench.errors import SenbenchError
 from senbench.plugin.manager import registries
 from senbench.results.store import SCHEMA, current_cells, finished_status, read_results
 from senbench.run.runner import run_suite
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 SARSA = """\
 name: small

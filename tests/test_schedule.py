@@ -13,7 +13,7 @@ from senbench.run import schedule as schedule_module
 from senbench.run.claims import CellClaims
 from senbench.run.runner import run_suite
 from senbench.run.schedule import Schedule, parse_duration
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 # A slow method (≈ 2.4 s a cell: 600 frames of 4 ms) beside a fast one (well under 1 s).
 MIXED = """\

@@ -5,7 +5,7 @@ import pytest
 
 from senbench.errors import SuiteError
 from senbench.plugin.manager import registries
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 
 GOOD = """\
 name: grid
@@ -41,13 +41,13 @@ def test_a_good_suite_expands_into_its_grid(write_suite):
     assert {c.variant for c in sarsa} == {"hyperparams.trace_decay=0.8",
                                           "hyperparams.trace_decay=0.9"}
     cell = sarsa[0]
-    assert cell.config["hyperparams"]["alpha"] == 0.8  # the suite overrides the env default
-    assert cell.config["hyperparams"]["tilings"] == 16  # sarsa's mountaincar default
-    assert cell.config["env"] == {"name": "mountaincar", "max_episode_steps": 300,
-                                  "options": {}, "threshold": -120}
+    assert cell.hyperparams["alpha"] == 0.8  # the suite overrides the env default
+    assert cell.hyperparams["tilings"] == 16  # sarsa's mountaincar default
+    assert (cell.env, cell.max_episode_steps, cell.env_options, cell.threshold) == (
+        "mountaincar", 300, {}, -120)
     ppo_pendulum = next(c for c in suite.cells if c.env == "pendulum")
-    assert ppo_pendulum.config["budget"] == 4000
-    assert ppo_pendulum.config["hyperparams"]["n_envs"] == 4  # zoo default for Pendulum
+    assert ppo_pendulum.budget == 4000
+    assert ppo_pendulum.hyperparams["n_envs"] == 4  # zoo default for Pendulum
     assert "rl-baselines3-zoo" in ppo_pendulum.hyperparams_source
 
 
@@ -150,7 +150,7 @@ BAD = {
 
 def test_scientific_notation_reads_as_a_number(write_suite):
     suite = load(write_suite, GOOD.replace("alpha: 0.8", "alpha: 8e-1"))
-    assert suite.cells[0].config["hyperparams"]["alpha"] == 0.8
+    assert suite.cells[0].hyperparams["alpha"] == 0.8
 
 
 def test_nested_aliases_validate_quickly(write_suite):

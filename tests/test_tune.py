@@ -13,7 +13,7 @@ from suites_for_tests import SEN_SARSA
 
 from senbench.cli.views import trials_table
 from senbench.plugin.manager import registries
-from senbench.suite.expand import load_suite
+from senbench.suite import load_suite
 from senbench.tune import study as tuning
 
 SUITE = """\

@@ -1,11 +1,15 @@
 """DQN (Mnih et al. 2015) and Double DQN (van Hasselt et al. 2016) from Stable-Baselines3,
 end to end on pixels (a CNN on the frame stack) or on the state (an MLP).
 
-SB3's DQN is used as it is; Double DQN is the one-method subclass below that changes the
-TD target: the online network picks the next action, the target network values it,
+SB3's DQN is used as it is. Double DQN changes only the TD target: the online network
+picks the next action, the target network values it,
 
     DQN:  y = r + γ (1 − done) max_a Q_target(s', a)
     DDQN: y = r + γ (1 − done) Q_target(s', argmax_a Q_online(s', a))
+
+SB3's ``DQN.train`` has no hook for the target: it takes ``q_net_target(s').max(dim=1)``.
+So Double DQN hands ``train`` a target network whose output is Q_target(s', a) at the
+online network's argmax and −∞ elsewhere: the max over actions is then the DDQN value.
 """
 
 from __future__ import annotations
@@ -60,47 +64,34 @@ class DQNConfig:
 
 
 @cache
-def algorithms() -> tuple[type, type]:
-    """(DQN with its TD target as a method, Double DQN): built on first use, so that
-    listing plugins does not import torch."""
+def double_dqn() -> type:
+    """SB3's DQN with the Double-DQN target; built on first use, so that listing plugins
+    does not import torch."""
     import torch as th
-    import torch.nn.functional as F
     from stable_baselines3 import DQN
 
-    class TargetDQN(DQN):
-        def td_target(self, data, discounts) -> th.Tensor:
-            next_q = self.q_net_target(data.next_observations).max(dim=1).values
-            return data.rewards + (1 - data.dones) * discounts * next_q.reshape(-1, 1)
+    class DoubleDQNTarget(th.nn.Module):
+        """The target network as DQN.train sees it in Double DQN. Its parameters and buffers
+        are the target network's alone, as SB3's target update (a pairwise copy from the
+        online network's) needs: the online network is held, not registered."""
 
-        def train(self, gradient_steps: int, batch_size: int = 100) -> None:
-            """SB3's DQN.train, with the target from ``td_target``."""
-            self.policy.set_training_mode(True)
-            self._update_learning_rate(self.policy.optimizer)
-            losses = []
-            for _ in range(gradient_steps):
-                data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-                discounts = data.discounts if data.discounts is not None else self.gamma
-                with th.no_grad():
-                    target = self.td_target(data, discounts)
-                current = th.gather(self.q_net(data.observations), dim=1,
-                                    index=data.actions.long())
-                loss = F.smooth_l1_loss(current, target)
-                losses.append(loss.item())
-                self.policy.optimizer.zero_grad()
-                loss.backward()
-                th.nn.utils.clip_grad_norm_(self.policy.parameters(), self.max_grad_norm)
-                self.policy.optimizer.step()
-            self._n_updates += gradient_steps
-            self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
-            self.logger.record("train/loss", np.mean(losses))
+        def __init__(self, online: th.nn.Module, target: th.nn.Module):
+            super().__init__()
+            self.target = target
+            object.__setattr__(self, "online", online)
 
-    class DoubleDQN(TargetDQN):
-        def td_target(self, data, discounts) -> th.Tensor:
-            best = self.q_net(data.next_observations).argmax(dim=1, keepdim=True)
-            next_q = th.gather(self.q_net_target(data.next_observations), dim=1, index=best)
-            return data.rewards + (1 - data.dones) * discounts * next_q
+        def forward(self, next_obs: th.Tensor) -> th.Tensor:
+            best = self.online(next_obs).argmax(dim=1, keepdim=True)
+            q = self.target(next_obs)
+            return th.full_like(q, -th.inf).scatter(1, best, q.gather(1, best))
 
-    return TargetDQN, DoubleDQN
+    class DoubleDQN(DQN):
+        def _setup_model(self) -> None:
+            super()._setup_model()
+            # train()'s alias only: the policy's q_net_target stays the target network
+            self.q_net_target = DoubleDQNTarget(self.q_net, self.policy.q_net_target)
+
+    return DoubleDQN
 
 
 class DQNAgent:
@@ -118,7 +109,9 @@ class DQNAgent:
         policy_kwargs = {"net_arch": list(cfg.net_arch), "optimizer_kwargs": {"fused": True}}
         if pixels:
             policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}
-        algorithm = algorithms()[1 if self.double else 0]
+        from stable_baselines3 import DQN
+
+        algorithm = double_dqn() if self.double else DQN
         self.model = algorithm(
             "CnnPolicy" if pixels else "MlpPolicy", venv,
             learning_rate=cfg.learning_rate, buffer_size=cfg.buffer_size,

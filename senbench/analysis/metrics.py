@@ -68,4 +68,10 @@ def cell_metrics(results: pd.DataFrame) -> pd.DataFrame:
             "auc": auc(steps, returns) if ok else np.nan,
             "wall_s": cell["cell_wall_s"],
         })
-    return pd.DataFrame(rows)
+    frame = pd.DataFrame(rows)
+    if frame.empty:
+        return frame
+    # In seed order: the bootstrap resamples positions, so an order that followed the cells'
+    # ids (hashes) would move the intervals whenever the ids change.
+    order = ["suite", "env", "method", "variant", "seed"]
+    return frame.sort_values(order, kind="stable").reset_index(drop=True)

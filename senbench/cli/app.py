@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import functools
-import os
 import signal
-import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 from rich.markup import escape
 
+from senbench.cli.common import FIGURE_HELP, Table, Threshold, err, out, user_errors
+from senbench.cli.encoder_plot_commands import encoder_app, plot_app
 from senbench.errors import SenbenchError
 from senbench.results.outputs import FIGURES, check_out_file
 
@@ -22,38 +20,13 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
-# Piped output (make demo, CI logs) gets tables 140 columns wide rather than rich's 80;
-# COLUMNS still wins. Messages are never hard-wrapped, so they stay greppable.
-_width = None if sys.stdout.isatty() or os.environ.get("COLUMNS") else 140
-out = Console(width=_width, soft_wrap=True)
-err = Console(stderr=True, soft_wrap=True)
-
-
-def user_errors(command):
-    """A user's mistake prints its message and exits 2; a traceback would be a bug."""
-
-    @functools.wraps(command)
-    def wrapper(*args, **kwargs):
-        try:
-            return command(*args, **kwargs)
-        except SenbenchError as exc:
-            err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False)
-            raise typer.Exit(exc.exit_code) from None
-
-    return wrapper
-
-
-FIGURE_HELP = "Figure to write: a .png, .pdf or .svg file."
-Table = Annotated[Path | None, typer.Option(
-    "--out", help="Also write the numbers shown to this .csv or .parquet file (replacing it).")]
-Threshold = Annotated[list[str] | None, typer.Option(
-    help="Frames to threshold (and the plots' dashed line) at this return instead of the "
-         "env's: -150 (results of one env) or mountaincar=-150 (repeat for several envs).")]
+app.add_typer(encoder_app, name="encoder")
+app.add_typer(plot_app, name="plot")
 
 
 def _load(suite_file: Path):
     from senbench.plugin.manager import registries
-    from senbench.suite.expand import load_suite
+    from senbench.suite import load_suite
 
     return load_suite(suite_file, registries())
 
@@ -330,118 +303,3 @@ def plugins() -> None:
     from senbench.plugin.manager import registries
 
     render_plugins(registries(), out)
-
-
-encoder_app = typer.Typer(help="State encoders: train, inspect.", no_args_is_help=True)
-plot_app = typer.Typer(help="PNG figures.", no_args_is_help=True)
-app.add_typer(encoder_app, name="encoder")
-app.add_typer(plot_app, name="plot")
-
-
-@encoder_app.command("train")
-@user_errors
-def encoder_train(
-    env: Annotated[str, typer.Option(help="Env plugin.")],
-    arch: Annotated[str, typer.Option(help="Encoder architecture.")] = "sen-resnet",
-    sampler: Annotated[str, typer.Option(help="Sampler of labelled frames.")] = "uniform",
-    samples: Annotated[int, typer.Option(min=10, help="Labelled pairs in the pool.")] = 50_000,
-    fraction: Annotated[float, typer.Option(min=0.0001, max=1.0,
-                                            help="Share of the pool trained on (d).")] = 0.2,
-    seed: Annotated[int, typer.Option(min=0)] = 0,
-    epochs: Annotated[int, typer.Option(min=1)] = 30,
-    batch_size: Annotated[int, typer.Option(min=2)] = 128,
-    learning_rate: Annotated[float, typer.Option(min=0.0)] = 1e-3,
-    patience: Annotated[int, typer.Option(min=1)] = 4,
-    test_samples: Annotated[int, typer.Option(min=10)] = 5000,
-    height: Annotated[int, typer.Option(min=8, max=512)] = 64,
-    width: Annotated[int, typer.Option(min=8, max=512)] = 64,
-    stack: Annotated[int, typer.Option(min=1, max=16)] = 2,
-    cache: Annotated[Path, typer.Option(help="Encoder cache.")] = Path("results/encoders"),
-    threads: Annotated[int | None, typer.Option(min=1, help="torch threads training runs on "
-                                                "(default 2); the weights depend on it, so "
-                                                "another count names another encoder.")]
-    = None,
-) -> None:
-    """Train a state encoder (or load it if this spec was trained before) and print its
-    held-out error per dimension."""
-    import pandas as pd
-
-    from senbench.cli.tables import render_encoder
-    from senbench.encoders import (
-        TRAINING_THREADS,
-        EncoderRequest,
-        Training,
-        cache_dir,
-        complete,
-        load_or_train,
-    )
-    from senbench.observe.pixels import PixelSpec
-    from senbench.plugin.manager import registries
-    regs = registries()
-    regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
-    request = EncoderRequest(
-        env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
-        samples=samples, fraction=fraction, seed=seed,
-        training=Training(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate,
-                          patience=patience, test_samples=test_samples,
-                          threads=threads or TRAINING_THREADS))
-    request = complete(request, regs)
-    load_or_train(cache, request, regs, err.print)
-    folder = cache_dir(cache, request)
-    render_encoder(pd.read_parquet(folder / "metrics.parquet"),
-                   f"{env}: {arch}, {request.train_size} of {samples} {sampler} samples "
-                   f"(d = {100 * fraction:g}%), held-out RMSE on {test_samples}", out)
-    out.print(f"encoder {request.id} → {folder}")
-
-
-@plot_app.command("curves")
-@user_errors
-def plot_curves_command(
-    results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
-    png: Annotated[Path | None, typer.Option(
-        "--out", help=FIGURE_HELP + " (default: RESULTS_DIR/curves.png)")] = None,
-    all_cells: Annotated[bool, typer.Option(
-        "--all", help="Include cells of earlier versions of the suite.")] = False,
-    threshold: Threshold = None,
-) -> None:
-    """Evaluation return against frames, mean and 95% CI band over seeds per method (the
-    paper's Figs. 4, 5, 8 and 9)."""
-    from senbench.analysis.summary import parse_thresholds, with_thresholds
-    from senbench.cli.plots import plot_curves
-    from senbench.results.store import read_results
-
-    png = png or results_dir / "curves.png"
-    check_out_file(png, FIGURES)
-    results = with_thresholds(read_results(results_dir, include_stale=all_cells),
-                              parse_thresholds(threshold or []))
-    suite = results["suite"].iloc[0]
-    envs = plot_curves(results, png, f"{suite}: learning curves")
-    out.print(f"{escape(str(png))}: {', '.join(envs)}")
-
-
-@plot_app.command("traces")
-@user_errors
-def plot_traces_command(
-    paths: Annotated[list[Path] | None, typer.Argument(
-        help="Encoder folders, or caches holding them.")] = None,
-    env: Annotated[str | None, typer.Option(help="Only this env's encoders.")] = None,
-    results: Annotated[Path | None, typer.Option(
-        help="The encoders a suite's cells used, from its results folder (and the "
-        "encoders/ cache beside it).")] = None,
-    png: Annotated[Path, typer.Option("--out", help=FIGURE_HELP)] = Path("traces.png"),
-    train: Annotated[bool, typer.Option(help="With --results: train the encoders missing "
-                                        "from the cache, from the cells' spec.")] = False,
-) -> None:
-    """Predicted vs true observation along a successful trajectory, one line per encoder
-    (the paper's Figs. 6 and 10)."""
-    from senbench.cli.plots import encoders_of_results, find_encoders, plot_traces
-
-    check_out_file(png, FIGURES)
-    if train and results is None:
-        raise SenbenchError("--train trains the encoders of --results DIR: name the folder")
-    if results is not None:
-        paths = [*(paths or []), *encoders_of_results(
-            results, env, train, lambda message: err.print(escape(message), highlight=False))]
-    encoders = find_encoders(paths or [Path("results/encoders")], env)
-    plot_traces(encoders, png)
-    out.print(f"{escape(str(png))}: {len(encoders)} encoders")

@@ -9,6 +9,7 @@ import pandas as pd
 
 from senbench.errors import ResultsError
 from senbench.results.outputs import save_figure
+from senbench.suite import Cell
 
 DASHES = ["-", (0, (6, 3)), (0, (1, 2)), (0, (6, 2, 1, 2))]
 """Line styles of the methods on a curves plot, in turn."""
@@ -61,11 +62,11 @@ def encoders_of_results(results: Path, env: str | None = None, train: bool = Fal
                            f"{' or '.join(str(r / 'encoders') for r in roots)}; add --train "
                            "to train them from the cells' spec")
     if missing:
-        from senbench.encoders import cache_dir, encoder_request, load_or_train
+        from senbench.encoders import cache_dir, load_or_train
         from senbench.plugin.manager import registries
 
         for encoder_id in missing:
-            request = encoder_request(json.loads(configs[encoder_id]))
+            request = Cell.from_config(json.loads(configs[encoder_id]), "").encoder_request()
             if request.id != encoder_id:  # the spec means something else to this build
                 raise ResultsError(f"encoder {encoder_id} of {results}: this senbench names "
                                    f"its spec {request.id}, so it cannot train the same one")

@@ -3,11 +3,11 @@ training draws labelled frames and fits it (training), the cache trains each onc
 
 from senbench.encoders.cache import cache_dir, complete, load, load_or_train
 from senbench.encoders.model import StateEncoder, build_model, observation_bounds  # noqa: I001
-from senbench.encoders.request import TRAINING_THREADS, EncoderRequest, Training, encoder_request
+from senbench.encoders.request import TRAINING_THREADS, EncoderRequest, Training
 from senbench.encoders.training import trace, train
 
 __all__ = [
     "TRAINING_THREADS", "EncoderRequest", "StateEncoder", "Training", "build_model", "cache_dir",
-    "complete", "encoder_request", "load", "load_or_train", "observation_bounds", "trace",
+    "complete", "load", "load_or_train", "observation_bounds", "trace",
     "train",
 ]

@@ -1,4 +1,5 @@
-"""What names a state encoder: its request, with the one home of its training defaults.
+"""What names a state encoder: its request, the one home of its defaults (suites, the CLI
+and the cache all take them from here).
 
 An encoder is named by everything that decides its weights — env, pixel spec, sampler and
 its config, pool size, the fraction of the pool it trains on (the paper's d%), architecture
@@ -42,13 +43,14 @@ class Training:
 class EncoderRequest:
     env: str
     pixels: PixelSpec
-    arch: str
-    sampler: str
-    samples: int
+    arch: str = "sen-resnet"
+    sampler: str = "uniform"
+    samples: int = 50_000
     """Labelled pairs in the pool."""
-    fraction: float
+    fraction: float = 0.2
     """Share of the pool trained on: the paper's d% as a fraction."""
     seed: int = 0
+    """The encoder's own seed: cells of every RL seed share one encoder."""
     arch_config: dict[str, Any] = field(default_factory=dict)
     sampler_config: dict[str, Any] = field(default_factory=dict)
     training: Training = Training()
@@ -64,32 +66,6 @@ class EncoderRequest:
         canonical = json.dumps(named, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(canonical.encode()).hexdigest()[:16]
 
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> EncoderRequest:
-        data = dict(data)
-        data["pixels"] = PixelSpec(**data["pixels"])
-        data["training"] = Training(**data.get("training", {}))
-        return cls(**data)
-
     @property
     def train_size(self) -> int:
         return max(2, round(self.samples * self.fraction))
-
-
-def encoder_request(cell_config: dict[str, Any]) -> EncoderRequest:
-    """The encoder a cell's resolved config asks for."""
-    entry = cell_config["encoder"]
-    return EncoderRequest(
-        env=cell_config["env"]["name"],
-        pixels=PixelSpec(**cell_config["pixels"]),
-        arch=entry["arch"],
-        sampler=entry["sampler"],
-        samples=entry["samples"],
-        fraction=entry["fraction"],
-        seed=entry["seed"],
-        arch_config=entry["config"],
-        sampler_config=entry["sampler_config"],
-        training=Training(epochs=entry["epochs"], batch_size=entry["batch_size"],
-                          learning_rate=entry["learning_rate"], patience=entry["patience"],
-                          lr_decay=entry["lr_decay"], test_samples=entry["test_samples"]),
-    )

@@ -21,14 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from senbench.encoders import encoder_request, load_or_train
+from senbench.encoders import load_or_train
 from senbench.observe.observations import make_env
-from senbench.observe.pixels import PixelSpec
 from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
 from senbench.results.store import write_cell
 from senbench.run.evaluation import CellRecorder, Evaluator
-from senbench.suite.expand import Cell
+from senbench.suite.cell import Cell
 
 ProgressCallback = Callable[[str, int, float, float | None, int | None], None]
 """(cell id, frames so far, frames/s, last evaluation return, the frame it was taken at)."""
@@ -94,32 +93,28 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
     recorder: CellRecorder | None = None
     status, error = "ok", None
     try:
-        cfg = cell.config
         regs = registries()
-        env_spec = regs.envs.get(cfg["env"]["name"])
-        agent_spec = regs.agents.get(cfg["agent"])
-
-        pixels = PixelSpec(**cfg["pixels"]) if cfg.get("pixels") else None
-        encoder = None
-        if cfg.get("encoder"):
-            encoder = load_or_train(info.encoder_cache, encoder_request(cfg), regs)
+        env_spec = regs.envs.get(cell.env)
+        agent_spec = regs.agents.get(cell.agent)
+        request = cell.encoder_request()
+        encoder = None if request is None else load_or_train(info.encoder_cache, request, regs)
 
         def make() -> Any:
-            return make_env(env_spec, cfg["observation"], cfg["env"]["max_episode_steps"],
-                            cfg["env"]["options"], pixels, encoder)
+            return make_env(env_spec, cell.observation, cell.max_episode_steps,
+                            cell.env_options, cell.pixels, encoder)
 
         _seed_everything(cell.seed)
-        ctx = AgentContext(agent_spec.config(**cfg["hyperparams"]), env_spec, make, cell.seed,
-                           cfg["threads"])
+        ctx = AgentContext(agent_spec.config(**cell.hyperparams), env_spec, make, cell.seed,
+                           cell.threads)
         agent = agent_spec.make(ctx)
-        evaluator = Evaluator(make(), cfg["eval"]["episodes"], cell.seed)
+        evaluator = Evaluator(make(), cell.eval_episodes, cell.seed)
         report = None if progress is None else (lambda *a: progress(cell.id, *a))
-        recorder = CellRecorder(cfg["budget"], cfg["eval"]["every"],
+        recorder = CellRecorder(cell.budget, cell.eval_every,
                                 lambda: evaluator(agent.act), report)
-        agent.learn(cfg["budget"], recorder)
-        if recorder.steps < cfg["budget"]:
-            raise RuntimeError(f"agent '{cfg['agent']}' stopped after {recorder.steps} of "
-                               f"{cfg['budget']} frames")
+        agent.learn(cell.budget, recorder)
+        if recorder.steps < cell.budget:
+            raise RuntimeError(f"agent '{cell.agent}' stopped after {recorder.steps} of "
+                               f"{cell.budget} frames")
     except KeyboardInterrupt:
         raise  # an interrupted cell writes nothing
     except BaseException as exc:  # a cell's failure, even sys.exit, must not stop the grid
@@ -139,16 +134,16 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
 
 def cell_metadata(cell: Cell, info: RunInfo, status: str, error: str | None,
                   started: datetime, ended: datetime, wall: float) -> dict[str, Any]:
-    cfg = cell.config
+    request = cell.encoder_request()
     return {
         "cell_id": cell.id, "suite": cell.suite, "env": cell.env, "method": cell.method,
-        "variant": cell.variant, "agent": cfg["agent"], "observation": cfg["observation"],
-        "seed": cell.seed, "threshold": float(cfg["env"]["threshold"]), "budget": cfg["budget"],
-        "status": status, "error": error, "config": json.dumps(cfg, sort_keys=True),
+        "variant": cell.variant, "agent": cell.agent, "observation": cell.observation,
+        "seed": cell.seed, "threshold": cell.threshold, "budget": cell.budget,
+        "status": status, "error": error, "config": json.dumps(cell.config(), sort_keys=True),
         "hyperparams_source": cell.hyperparams_source,
-        "encoder_id": encoder_request(cfg).id if cfg.get("encoder") else None,
+        "encoder_id": None if request is None else request.id,
         **{f"{k}_version": v for k, v in info.versions.items()},
-        "git_commit": info.git_commit, "host": info.host, "threads": cfg["threads"],
+        "git_commit": info.git_commit, "host": info.host, "threads": cell.threads,
         "started_at": started, "ended_at": ended, "cell_wall_s": wall,
         "peak_rss_mb": _peak_rss_mb(),
     }

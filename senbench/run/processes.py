@@ -28,7 +28,7 @@ from senbench.run.execute import CellOutcome, RunInfo, record_lost_cell, run_cel
 from senbench.run.progress import Progress
 from senbench.run.schedule import Schedule
 from senbench.run.summary import RunSummary
-from senbench.suite.expand import Cell
+from senbench.suite import Cell
 
 
 def usable_cores() -> int:
@@ -42,8 +42,8 @@ def usable_cores() -> int:
 def run_serial(schedule: Schedule, directory: Path, info: RunInfo, progress: Progress,
                 summary: RunSummary) -> None:
     while (cell := schedule.next()) is not None:
-        progress.started(cell.id, cell.label, cell.config["budget"])
-        set_threads(cell.config["threads"])
+        progress.started(cell.id, cell.label, cell.budget)
+        set_threads(cell.threads)
         try:
             outcome = run_cell(cell, directory, info, progress.update)
         except Exception as exc:  # outside the agent: e.g. the result could not be written
@@ -70,7 +70,7 @@ def _cell_process(cell: Cell, directory: Path, info: RunInfo, events: Any,
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
-    set_threads(cell.config["threads"])
+    set_threads(cell.threads)
     plugins.register_modules(extra_plugins)
     try:
         outcome = run_cell(cell, directory, info,
@@ -126,7 +126,7 @@ def run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int
                     running[cell.id] = (cell, process)
                     pipes[cell.id] = reader
                 writer.close()
-                progress.started(cell.id, cell.label, cell.config["budget"])
+                progress.started(cell.id, cell.label, cell.budget)
             if not running:
                 break
             _drain(pipes, progress, outcomes, timeout=0.2)

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from senbench.encoders import complete, encoder_request
+from senbench.encoders import complete
 from senbench.errors import SenbenchError
 from senbench.plugin import manager as plugins
 from senbench.results.atomic import atomic_folder
@@ -32,7 +32,7 @@ from senbench.results.store import remove_stray_temp_files, write_cell
 from senbench.run.execute import CellOutcome, RunInfo, execute_cell, lost_cell, record_lost_cell
 from senbench.run.processes import set_threads, signals_held, usable_cores
 from senbench.run.progress import Progress
-from senbench.suite.expand import Cell
+from senbench.suite import Cell
 
 ENCODER_FILES = ("model.pt", "spec.json")
 """What a node needs of a trained encoder to load it (not its traces or training curve)."""
@@ -60,7 +60,7 @@ def run_cells(todo: list[Cell], directory: Path, info: RunInfo, progress: Progre
     ``address``: an existing cluster (``auto``, ``ray://host:port``); None starts a local
     instance for this run, with ``workers`` CPUs (default: this machine's), and stops it."""
     ray = import_ray()
-    needs = max((c.config["threads"] for c in todo), default=1)
+    needs = max((c.threads for c in todo), default=1)
     started_here = False
     if not ray.is_initialized():
         # Held: a Ctrl-C while Ray starts is handled once it has; and on leaving, our
@@ -107,10 +107,10 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: P
     ended: set[str] = set()  # a cell's last reports may reach the sink after its result
     try:
         for cell in todo:
-            key = _encoder_key(cell) if cell.config.get("encoder") else None
+            key = _encoder_key(cell) if cell.encoder is not None else None
             if key is not None and key not in shipped:
                 shipped[key] = ray.put(_encoder_files(info.encoder_cache, key))
-            ref = task.options(num_cpus=cell.config["threads"], max_retries=retries,
+            ref = task.options(num_cpus=cell.threads, max_retries=retries,
                                retry_exceptions=False, name=f"senbench-cell-{cell.id}",
                                ).remote(cell, info, key, shipped.get(key), extra, sink)
             pending[ref] = cell
@@ -122,7 +122,7 @@ def _run(ray: Any, todo: list[Cell], directory: Path, info: RunInfo, progress: P
                 outcome = _collect(ray, ref, cell, directory, info, retries)
                 written(cell.id)
                 if cell.id not in running:
-                    progress.started(cell.id, cell.label, cell.config["budget"])
+                    progress.started(cell.id, cell.label, cell.budget)
                 running.discard(cell.id)
                 ended.add(cell.id)
                 summary.outcomes.append(outcome)
@@ -168,7 +168,7 @@ def _show(events: list[tuple], cells: dict[str, Cell], running: set[str], ended:
             continue
         if cell_id not in running:  # a retried cell starts again: show it once
             cell = cells[cell_id]
-            progress.started(cell_id, cell.label, cell.config["budget"])
+            progress.started(cell_id, cell.label, cell.budget)
             running.add(cell_id)
         if event == "update":
             progress.update(cell_id, *args)
@@ -184,7 +184,7 @@ def _first_line(exc: BaseException) -> str:
 
 def _encoder_key(cell: Cell) -> str:
     """The encoder's cache folder name (its completed request's id)."""
-    return complete(encoder_request(cell.config), plugins.registries()).id
+    return complete(cell.encoder_request(), plugins.registries()).id
 
 
 def _encoder_files(cache: Path, key: str) -> dict[str, bytes]:
@@ -235,7 +235,7 @@ class _ProgressSink:
 def _ray_cell(cell: Cell, info: RunInfo, key: str | None, files: dict[str, bytes] | None,
               extra: list[tuple[str, str, str]], sink: Any
               ) -> tuple[list[dict[str, Any]], CellOutcome]:
-    set_threads(cell.config["threads"])
+    set_threads(cell.threads)
     plugins.register_modules(extra)
     here = dataclasses.replace(info, host=platform.node(),
                                encoder_cache=_materialize(key, files) if key else

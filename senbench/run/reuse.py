@@ -1,14 +1,13 @@
-"""Copying finished cells of other suites instead of running them again (``run --reuse``).
+"""Taking finished cells of other suites instead of running them again (``run --reuse``).
 
-Two cells whose resolved configs agree in everything but the labels ``method`` and
-``variant`` compute the same curve: nothing in a cell's run reads its names (it is seeded
-from the config), and the same suite and seed give the same curves on CPU. A sweep that
-contains a main suite's setting (the d = 20% encoder of a d-sweep beside the paper suite,
-say) can then copy those cells from the main suite's results rather than spend their hours
-again. The copy keeps every row and the record of the run that computed it (times, host,
-commit, versions); only the cell's identity (id, suite, method, variant, config,
-hyperparams source) becomes this suite's. The cell's encoder comes along into this results
-root's cache when the source lies under another root.
+A cell's id is a hash of what it computes, not of its names (:mod:`senbench.suite.cell`), so
+a cell of this suite that another suite's results folder already holds, finished, is found
+by its id: ``<folder>/cells/<id>.parquet``. A sweep that contains a main suite's setting
+(the d = 20% encoder of a d-sweep beside the paper suite, say) takes those cells from the
+main suite's results rather than spend their hours again. The copy keeps every row and the
+record of the run that computed it (times, host, commit, versions); only the labels (suite,
+method, variant, threshold, hyperparams source, config) become this suite's. The cell's
+encoder comes along into this results root's cache when the source lies under another root.
 """
 
 from __future__ import annotations
@@ -17,7 +16,6 @@ import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -25,16 +23,7 @@ import pyarrow.parquet as pq
 from senbench.errors import SenbenchError
 from senbench.results.atomic import atomic_folder
 from senbench.results.store import SCHEMA, write_table
-from senbench.suite.expand import Cell
-
-LABELS = ("method", "variant")
-"""Config keys that name a cell without changing its curve."""
-
-
-def curve_key(config: dict[str, Any]) -> str:
-    """The config without its labels: equal keys, equal curves."""
-    return json.dumps({k: v for k, v in config.items() if k not in LABELS}, sort_keys=True,
-                      separators=(",", ":"))
+from senbench.suite import Cell
 
 
 @dataclass(frozen=True)
@@ -46,8 +35,10 @@ class Reused:
     senbench_version: str | None
 
 
-def _finished(path: Path) -> tuple[str, pa.Table] | None:
-    """A cell file's curve key and table if it holds a finished cell of today's schema."""
+def _finished(path: Path) -> pa.Table | None:
+    """A cell file's table if it holds a finished cell of today's schema whose config has
+    the id in its name (so a file of an older senbench, with ids of another scheme, never
+    stands in for a cell it did not compute)."""
     try:
         if not pq.read_schema(path).equals(SCHEMA):
             return None  # written by a senbench whose results had other columns
@@ -57,14 +48,17 @@ def _finished(path: Path) -> tuple[str, pa.Table] | None:
     for kind, status, config in zip(*(table[c].to_pylist() for c in
                                       ("kind", "status", "config")), strict=True):
         if kind == "cell":
-            return (curve_key(json.loads(config)), table) if status == "ok" else None
+            if status != "ok" or Cell.from_config(json.loads(config), "").id != path.stem:
+                return None
+            return table
     return None
 
 
 def finished_cells(folders: list[Path], exclude: Path | None = None) -> dict[str, Path]:
-    """The finished (``ok``) cell files under suite results folders, by curve key; the
-    first folder that holds a key wins. A folder that holds no suite's results is an error,
-    before anything is written. ``exclude``: this suite's own cells folder."""
+    """The cell files under suite results folders, by cell id; the first folder that holds
+    an id wins (whether it is finished is checked when it is taken). A folder that holds no
+    suite's results is an error, before anything is written. ``exclude``: this suite's own
+    cells folder."""
     found: dict[str, Path] = {}
     for folder in folders:
         cells = Path(folder) / "cells"
@@ -75,30 +69,31 @@ def finished_cells(folders: list[Path], exclude: Path | None = None) -> dict[str
         if exclude is not None and cells.resolve() == Path(exclude).resolve():
             continue
         for path in sorted(cells.glob("*.parquet")):
-            if (hit := _finished(path)) is not None:
-                found.setdefault(hit[0], path)
+            found.setdefault(path.stem, path)
     return found
 
 
 def copy_cell(cell: Cell, source: Path, directory: Path, encoder_cache: Path) -> Reused | None:
     """Write ``source``'s rows as ``cell``'s result file (atomically, as a run would), and
-    its encoder into ``encoder_cache`` if missing there. None if ``source`` no longer holds
-    a finished cell of the same curve (rewritten or removed since it was found)."""
-    hit = _finished(source)
-    if hit is None or hit[0] != curve_key(cell.config):
+    its encoder into ``encoder_cache`` if missing there. None if ``source`` does not hold
+    this cell, finished (failed, rewritten or removed since it was found)."""
+    table = _finished(source) if source.stem == cell.id else None
+    if table is None:
         return None
-    table = hit[1]
     first = table.slice(0, 1).to_pylist()[0]
     if first["encoder_id"]:
         _copy_encoder(source.parent.parent.parent / "encoders" / first["encoder_id"],
                       Path(encoder_cache) / first["encoder_id"])
-    identity = {"cell_id": cell.id, "suite": cell.suite, "method": cell.method,
-                "variant": cell.variant, "config": json.dumps(cell.config, sort_keys=True),
-                "hyperparams_source": cell.hyperparams_source}
-    for name, value in identity.items():
+    labels = {"suite": cell.suite, "method": cell.method, "variant": cell.variant,
+              "config": json.dumps(cell.config(), sort_keys=True),
+              "hyperparams_source": cell.hyperparams_source}
+    for name, value in labels.items():
         index = table.schema.get_field_index(name)
         table = table.set_column(index, table.schema.field(index),
                                  pa.array([value] * len(table), pa.string()))
+    index = table.schema.get_field_index("threshold")
+    table = table.set_column(index, table.schema.field(index),
+                             pa.array([cell.threshold] * len(table), pa.float64()))
     write_table(directory, cell.id, table)
     evals = [r for k, r in zip(table["kind"].to_pylist(), table["return"].to_pylist(),
                                strict=True) if k == "eval"]

@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from senbench.encoders import encoder_request, load_or_train
+from senbench.encoders import load_or_train
 from senbench.errors import SenbenchError
 from senbench.plugin.manager import registries
 from senbench.results.store import (
@@ -28,10 +28,10 @@ from senbench.run.claims import CellClaims, running_cells
 from senbench.run.execute import RunInfo, record_lost_cell
 from senbench.run.processes import run_processes, run_serial, usable_cores
 from senbench.run.progress import NullProgress, Progress
-from senbench.run.reuse import copy_cell, curve_key, finished_cells
+from senbench.run.reuse import copy_cell, finished_cells
 from senbench.run.schedule import Schedule
 from senbench.run.summary import RunSummary
-from senbench.suite.expand import Cell, Suite
+from senbench.suite import Cell, Suite
 
 
 def pending_cells(cells: list[Cell], directory: Path, force: bool) -> list[Cell]:
@@ -52,8 +52,9 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
     """Run the cells of ``suite`` not yet finished under ``results_root``; with ``cells``
     (from :meth:`Suite.select`), only those. The manifest names the whole suite all the
     same, so ``report`` shows every finished cell of this version. A cell that one of the
-    ``reuse`` folders (other suites' results) holds finished, identical in all but its
-    method and variant names, is copied from there instead (see :mod:`senbench.run.reuse`).
+    ``reuse`` folders (other suites' results) holds finished under its id (the same
+    computation, whatever its names there) is copied from there instead (see
+    :mod:`senbench.run.reuse`).
     With ``time_limit_s``, a cell starts only if it is expected to end within that many
     seconds of the call (see :mod:`senbench.run.schedule`); ``summary.not_started`` counts the
     cells left for a later run. A cell that another run of the suite holds is passed over
@@ -87,7 +88,7 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
     todo = pending_cells(cells, directory, force)
     summary = RunSummary(total=len(cells), skipped=len(cells) - len(todo))
     progress = progress or NullProgress()
-    threads = max((c.config["threads"] for c in todo), default=1)
+    threads = max((c.threads for c in todo), default=1)
     if executor == "local":
         workers = workers or 1
     if executor == "local" and workers * threads > usable_cores():
@@ -141,7 +142,7 @@ def _copy_reused(todo: list[Cell], directory: Path, info: RunInfo, found: dict[s
     passes it over)."""
     left, other_code = [], 0
     for cell in todo:
-        source = found.get(curve_key(cell.config))
+        source = found.get(cell.id)
         copy = None
         if source is not None and claims.take(cell.id):  # held elsewhere: left to schedule
             try:
@@ -170,14 +171,14 @@ def prepare_encoders(todo: list[Cell], directory: Path, info: RunInfo,
     fails, with why."""
     needed: dict[str, list[Cell]] = {}
     for cell in todo:
-        if cell.config.get("encoder"):
-            needed.setdefault(encoder_request(cell.config).id, []).append(cell)
+        if (request := cell.encoder_request()) is not None:
+            needed.setdefault(request.id, []).append(cell)
     if not needed:
         return todo
     lost: set[str] = set()
     for cells in needed.values():
         try:
-            load_or_train(info.encoder_cache, encoder_request(cells[0].config), registries(),
+            load_or_train(info.encoder_cache, cells[0].encoder_request(), registries(),
                           progress.log)
         except Exception as exc:
             for cell in cells:

@@ -26,7 +26,7 @@ from senbench.errors import SenbenchError
 from senbench.results.store import cell_path, cell_row, finished_status
 from senbench.run.claims import CellClaims
 from senbench.run.status import suite_status
-from senbench.suite.expand import Cell, Suite
+from senbench.suite import Cell, Suite
 
 MARGIN = 1.1
 """A cell starts if its expected time, times this, fits in the time left."""

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from senbench.results.store import cell_path, cell_row, cells_dir
 from senbench.run.claims import running_cells
-from senbench.suite.expand import Suite
+from senbench.suite import Suite
 
 
 @dataclass

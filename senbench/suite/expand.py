@@ -1,17 +1,13 @@
-"""Suites: a YAML grid of comparisons, validated, expanded into cells with stable ids.
+"""Suites: a YAML grid of comparisons, validated, expanded into cells (:mod:`senbench.suite.cell`).
 
-A cell is one (env, method, variant, seed). Its id is a hash of its resolved config — the
-agent's full hyperparameters after defaults are applied, the env options, budget and
-evaluation — so the same comparison always lands in the same result file, and changing
-anything that could change the curve gives a new one.
+Every problem of a suite is found in one pass and reported together, each with its file,
+line and key path; nothing runs until there are none.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import itertools
-import json
 import reprlib
 import typing
 from dataclasses import dataclass
@@ -23,32 +19,11 @@ from pydantic import BaseModel
 
 from senbench.errors import SuiteError, unknown_name_message
 from senbench.observe.observations import OBSERVATIONS
+from senbench.observe.pixels import PixelSpec
 from senbench.plugin.registry import Registries
+from senbench.suite.cell import Cell
 from senbench.suite.schema import EncoderEntry, MethodEntry, SuiteModel
 from senbench.suite.source import Loc, SuiteSource, read_suite_file
-
-
-@dataclass(frozen=True)
-class Cell:
-    suite: str
-    env: str
-    method: str
-    variant: str
-    """``path=value`` pairs joined by ``,``; empty for a method's base variant."""
-    seed: int
-    config: dict[str, Any]
-    """The resolved config: everything that can change the curve."""
-    hyperparams_source: str = ""
-
-    @property
-    def id(self) -> str:
-        canonical = json.dumps(self.config, sort_keys=True, separators=(",", ":"))
-        return hashlib.sha256(canonical.encode()).hexdigest()[:16]
-
-    @property
-    def label(self) -> str:
-        variant = f"[{self.variant}]" if self.variant else ""
-        return f"{self.env}/{self.method}{variant} seed {self.seed}"
 
 
 @dataclass
@@ -197,54 +172,9 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
             if env_name not in model.envs:
                 known = list(model.envs)
                 problem((*loc, "envs", i), unknown_name_message("suite env", env_name, known))
-                continue
-            if env_name not in envs:
-                continue  # already reported as an unknown env
-            env_spec, env_entry = envs[env_name]
-            if env_spec.actions not in agent.actions:
-                problem(loc, f"agent '{agent.name}' needs {'/'.join(sorted(agent.actions))} "
-                        f"actions but env '{env_name}' has {env_spec.actions} actions; restrict "
-                        "the method with 'envs: [...]'")
-                continue
-            env_config = {
-                "name": env_name,
-                "max_episode_steps": env_entry.max_episode_steps or env_spec.max_episode_steps,
-                "options": dict(env_entry.options),
-                "threshold": env_spec.threshold if env_entry.threshold is None
-                else env_entry.threshold,
-            }
-            pixels = None  # in the config (and the id) only where frames are drawn
-            if method.observation != "state":
-                pixels = (method.pixels or model.pixels).model_dump()
-            defaults = agent.defaults_for(env_name, method.observation)
-            source_note = defaults.source if defaults else "agent defaults"
-            for variant, overrides in _variants(model.variants.get(method_name, {})):
-                hyperparams, encoder, where = _apply_variant(
-                    method_name, method, overrides, problem
-                )
-                merged = {**(defaults.values if defaults else {}), **hyperparams}
-                resolved = _resolve_config(agent, merged, where, problem)
-                if encoder is not None:
-                    encoder = _resolve_encoder(encoder, regs, method_name, problem)
-                if resolved is None or (method.encoder is not None and encoder is None):
-                    continue
-                for seed in model.seeds:
-                    config = {
-                        "env": env_config,
-                        "method": method_name,
-                        "agent": agent.name,
-                        "observation": method.observation,
-                        "hyperparams": resolved,
-                        "encoder": encoder,
-                        "pixels": pixels,
-                        "variant": overrides,
-                        "seed": seed,
-                        "budget": env_entry.budget or model.budget,
-                        "eval": model.eval.model_dump(),
-                        "threads": model.threads,
-                    }
-                    cells.append(Cell(model.name, env_name, method_name, variant, seed, config,
-                                      source_note))
+            elif env_name in envs:  # else already reported as an unknown env
+                cells += _method_cells(model, method_name, method, agent, env_name,
+                                       *envs[env_name], regs, problem)
     seen: dict[str, Cell] = {}
     for cell in cells:
         if cell.id in seen:
@@ -252,6 +182,42 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
                             f"{cell.label} resolve to the same config; remove the duplicate "
                             "seed, variant value or method")
         seen.setdefault(cell.id, cell)
+    return cells
+
+
+def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agent: Any,
+                  env_name: str, env_spec: Any, env_entry: Any, regs: Registries,
+                  problem) -> list[Cell]:
+    """The cells of one method on one env: a cell per variant and seed."""
+    if env_spec.actions not in agent.actions:
+        problem(("methods", method_name), f"agent '{agent.name}' needs "
+                f"{'/'.join(sorted(agent.actions))} actions but env '{env_name}' has "
+                f"{env_spec.actions} actions; restrict the method with 'envs: [...]'")
+        return []
+    pixels = None  # only where frames are drawn
+    if method.observation != "state":
+        pixels = PixelSpec(**(method.pixels or model.pixels).model_dump())
+    defaults = agent.defaults_for(env_name, method.observation)
+    common = dict(
+        suite=model.name, method=method_name, env=env_name, agent=agent.name,
+        observation=method.observation, budget=env_entry.budget or model.budget,
+        eval_every=model.eval.every, eval_episodes=model.eval.episodes,
+        max_episode_steps=env_entry.max_episode_steps or env_spec.max_episode_steps,
+        threads=model.threads, env_options=dict(env_entry.options), pixels=pixels,
+        threshold=float(env_spec.threshold if env_entry.threshold is None
+                        else env_entry.threshold),
+        hyperparams_source=defaults.source if defaults else "agent defaults")
+    cells = []
+    for variant, overrides in _variants(model.variants.get(method_name, {})):
+        hyperparams, encoder, where = _apply_variant(method_name, method, overrides, problem)
+        merged = {**(defaults.values if defaults else {}), **hyperparams}
+        resolved = _resolve_config(agent, merged, where, problem)
+        if encoder is not None:
+            encoder = _resolve_encoder(encoder, regs, method_name, problem)
+        if resolved is None or (method.encoder is not None and encoder is None):
+            continue
+        cells += [Cell(**common, variant=variant, variant_values=overrides, seed=seed,
+                       hyperparams=resolved, encoder=encoder) for seed in model.seeds]
     return cells
 
 

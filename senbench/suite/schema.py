@@ -10,6 +10,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from senbench.encoders import EncoderRequest, Training
+
 
 class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid")
@@ -32,23 +34,27 @@ class EnvEntry(StrictModel):
 
 
 class EncoderEntry(StrictModel):
-    arch: str = "sen-resnet"
+    """A method's state encoder. Every default is the encoder request's own
+    (:mod:`senbench.encoders.request`), so a suite, ``senbench encoder train`` and the cache
+    agree on what an unset key means."""
+
+    arch: str = EncoderRequest.arch
     config: dict[str, Any] = {}
     """The architecture's hyperparameters."""
-    sampler: str = "uniform"
+    sampler: str = EncoderRequest.sampler
     sampler_config: dict[str, Any] = {}
-    samples: Count = 50_000
+    samples: Count = EncoderRequest.samples
     """Labelled (frames, state) pairs in the pool."""
-    fraction: Annotated[float, Field(gt=0, le=1)] = 0.2
+    fraction: Annotated[float, Field(gt=0, le=1)] = EncoderRequest.fraction
     """Share of the pool used for training: the paper's d% as a fraction."""
-    seed: Seed = 0
+    seed: Seed = EncoderRequest.seed
     """The encoder's own seed: cells of every RL seed share one encoder."""
-    epochs: Count = 30
-    batch_size: Annotated[int, Field(strict=True, ge=2)] = 128
-    learning_rate: Annotated[float, Field(gt=0, allow_inf_nan=False)] = 1e-3
-    patience: Count = 4
-    lr_decay: Annotated[float, Field(gt=0, le=1)] = 0.3
-    test_samples: Count = 5000
+    epochs: Count = Training.epochs
+    batch_size: Annotated[int, Field(strict=True, ge=2)] = Training.batch_size
+    learning_rate: Annotated[float, Field(gt=0, allow_inf_nan=False)] = Training.learning_rate
+    patience: Count = Training.patience
+    lr_decay: Annotated[float, Field(gt=0, le=1)] = Training.lr_decay
+    test_samples: Count = Training.test_samples
 
 
 class PixelsEntry(StrictModel):

@@ -21,6 +21,7 @@ killed is marked failed by the next process that starts, instead of staying RUNN
 from __future__ import annotations
 
 import copy
+import dataclasses
 import fcntl
 import os
 import platform
@@ -41,7 +42,7 @@ from senbench.run.processes import run_processes
 from senbench.run.progress import NullProgress
 from senbench.run.runner import prepare_encoders
 from senbench.run.summary import RunSummary
-from senbench.suite.expand import Cell, Suite
+from senbench.suite import Cell, Suite
 
 TUNE_SEED_OFFSET = 1_000_000
 ENCODER = "encoder."
@@ -83,7 +84,7 @@ def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
         raise SuiteError(f"method '{method}' has variants; tune a method without variants "
                          "(copy it under another name with the values fixed)")
     template = cells[0]
-    agent = regs.agents.get(template.config["agent"])
+    agent = regs.agents.get(template.agent)
     entry = suite.model.methods[method]
     fixed = dict(entry.hyperparams)
     space = {name: param for name, param in agent.search_space.items() if name not in fixed}
@@ -149,28 +150,19 @@ def trial_cells(tgt: Target, params: dict[str, Any], seeds: int, regs: Any) -> l
     """The K cells of a trial: the template's config with the trial's hyperparameters, on
     the tuning seeds. Hyperparameters the agent refuses (its own range checks, e.g. a
     batch larger than a rollout) raise ValueError."""
-    agent = regs.agents.get(tgt.template.config["agent"])
+    agent = regs.agents.get(tgt.template.agent)
     encoder_params = {k[len(ENCODER):]: v for k, v in params.items() if k.startswith(ENCODER)}
-    hyperparams = {**tgt.template.config["hyperparams"],
+    hyperparams = {**tgt.template.hyperparams,
                    **{k: v for k, v in params.items() if not k.startswith(ENCODER)}}
     resolved = agent.config(**hyperparams)  # raises on a bad combination
     hyperparams = {k: getattr(resolved, k) for k in hyperparams}
-    encoder = copy.deepcopy(tgt.template.config.get("encoder"))
+    encoder = copy.deepcopy(tgt.template.encoder)
     if encoder_params:
-        import dataclasses
-
         arch = regs.encoders.get(encoder["arch"])
         encoder["config"] = dataclasses.asdict(arch.config(**{**encoder["config"],
                                                               **encoder_params}))
-    cells = []
-    for i in range(seeds):
-        config = copy.deepcopy(tgt.template.config)
-        config["hyperparams"] = hyperparams
-        config["encoder"] = copy.deepcopy(encoder)
-        config["seed"] = TUNE_SEED_OFFSET + i
-        cells.append(Cell(tgt.suite.name, tgt.env, tgt.method, "", config["seed"], config,
-                          tgt.template.hyperparams_source))
-    return cells
+    return [tgt.template.replace(hyperparams=dict(hyperparams), encoder=copy.deepcopy(encoder),
+                                 seed=TUNE_SEED_OFFSET + i) for i in range(seeds)]
 
 
 class PruningProgress:
@@ -269,8 +261,8 @@ def make_sampler(name: str, seed: int | None) -> Any:
 def make_pruner(name: str, tgt: Target) -> Any:
     import optuna
 
-    every = tgt.template.config["eval"]["every"]
-    budget = tgt.template.config["budget"]
+    every = tgt.template.eval_every
+    budget = tgt.template.budget
     if name == "median":
         # as rl-baselines3-zoo: no pruning in the first 5 trials nor the first third of a
         # trial, where returns still say little (MountainCar sits at -200 early on)

@@ -1,0 +1,123 @@
+"""``senbench encoder ...`` and ``senbench plot ...``: the sub-commands of encoders and
+figures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.markup import escape
+
+from senbench.cli.common import FIGURE_HELP, Threshold, err, out, user_errors
+from senbench.encoders.request import EncoderRequest, Training
+from senbench.errors import SenbenchError
+from senbench.results.outputs import FIGURES, check_out_file
+
+encoder_app = typer.Typer(help="State encoders: train, inspect.", no_args_is_help=True)
+plot_app = typer.Typer(help="PNG figures.", no_args_is_help=True)
+
+
+@encoder_app.command("train")
+@user_errors
+def encoder_train(
+    env: Annotated[str, typer.Option(help="Env plugin.")],
+    arch: Annotated[str, typer.Option(help="Encoder architecture.")] = EncoderRequest.arch,
+    sampler: Annotated[str, typer.Option(help="Sampler of labelled frames.")
+                       ] = EncoderRequest.sampler,
+    samples: Annotated[int, typer.Option(min=10, help="Labelled pairs in the pool.")
+                       ] = EncoderRequest.samples,
+    fraction: Annotated[float, typer.Option(min=0.0001, max=1.0,
+                                            help="Share of the pool trained on (d).")
+                        ] = EncoderRequest.fraction,
+    seed: Annotated[int, typer.Option(min=0)] = EncoderRequest.seed,
+    epochs: Annotated[int, typer.Option(min=1)] = Training.epochs,
+    batch_size: Annotated[int, typer.Option(min=2)] = Training.batch_size,
+    learning_rate: Annotated[float, typer.Option(min=0.0)] = Training.learning_rate,
+    patience: Annotated[int, typer.Option(min=1)] = Training.patience,
+    test_samples: Annotated[int, typer.Option(min=10)] = Training.test_samples,
+    height: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    width: Annotated[int, typer.Option(min=8, max=512)] = 64,
+    stack: Annotated[int, typer.Option(min=1, max=16)] = 2,
+    cache: Annotated[Path, typer.Option(help="Encoder cache.")] = Path("results/encoders"),
+    threads: Annotated[int | None, typer.Option(min=1, help="torch threads training runs on "
+                                                "(default 2); the weights depend on it, so "
+                                                "another count names another encoder.")]
+    = None,
+) -> None:
+    """Train a state encoder (or load it if this spec was trained before) and print its
+    held-out error per dimension."""
+    import pandas as pd
+
+    from senbench.cli.tables import render_encoder
+    from senbench.encoders import TRAINING_THREADS, cache_dir, complete, load_or_train
+    from senbench.observe.pixels import PixelSpec
+    from senbench.plugin.manager import registries
+    regs = registries()
+    regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
+    request = EncoderRequest(
+        env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
+        samples=samples, fraction=fraction, seed=seed,
+        training=Training(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate,
+                          patience=patience, test_samples=test_samples,
+                          threads=threads or TRAINING_THREADS))
+    request = complete(request, regs)
+    load_or_train(cache, request, regs, err.print)
+    folder = cache_dir(cache, request)
+    render_encoder(pd.read_parquet(folder / "metrics.parquet"),
+                   f"{env}: {arch}, {request.train_size} of {samples} {sampler} samples "
+                   f"(d = {100 * fraction:g}%), held-out RMSE on {test_samples}", out)
+    out.print(f"encoder {request.id} → {folder}")
+
+
+@plot_app.command("curves")
+@user_errors
+def plot_curves_command(
+    results_dir: Annotated[Path, typer.Argument(help="A suite's results folder.")],
+    png: Annotated[Path | None, typer.Option(
+        "--out", help=FIGURE_HELP + " (default: RESULTS_DIR/curves.png)")] = None,
+    all_cells: Annotated[bool, typer.Option(
+        "--all", help="Include cells of earlier versions of the suite.")] = False,
+    threshold: Threshold = None,
+) -> None:
+    """Evaluation return against frames, mean and 95% CI band over seeds per method (the
+    paper's Figs. 4, 5, 8 and 9)."""
+    from senbench.analysis.summary import parse_thresholds, with_thresholds
+    from senbench.cli.plots import plot_curves
+    from senbench.results.store import read_results
+
+    png = png or results_dir / "curves.png"
+    check_out_file(png, FIGURES)
+    results = with_thresholds(read_results(results_dir, include_stale=all_cells),
+                              parse_thresholds(threshold or []))
+    suite = results["suite"].iloc[0]
+    envs = plot_curves(results, png, f"{suite}: learning curves")
+    out.print(f"{escape(str(png))}: {', '.join(envs)}")
+
+
+@plot_app.command("traces")
+@user_errors
+def plot_traces_command(
+    paths: Annotated[list[Path] | None, typer.Argument(
+        help="Encoder folders, or caches holding them.")] = None,
+    env: Annotated[str | None, typer.Option(help="Only this env's encoders.")] = None,
+    results: Annotated[Path | None, typer.Option(
+        help="The encoders a suite's cells used, from its results folder (and the "
+        "encoders/ cache beside it).")] = None,
+    png: Annotated[Path, typer.Option("--out", help=FIGURE_HELP)] = Path("traces.png"),
+    train: Annotated[bool, typer.Option(help="With --results: train the encoders missing "
+                                        "from the cache, from the cells' spec.")] = False,
+) -> None:
+    """Predicted vs true observation along a successful trajectory, one line per encoder
+    (the paper's Figs. 6 and 10)."""
+    from senbench.cli.plots import encoders_of_results, find_encoders, plot_traces
+
+    check_out_file(png, FIGURES)
+    if train and results is None:
+        raise SenbenchError("--train trains the encoders of --results DIR: name the folder")
+    if results is not None:
+        paths = [*(paths or []), *encoders_of_results(
+            results, env, train, lambda message: err.print(escape(message), highlight=False))]
+    encoders = find_encoders(paths or [Path("results/encoders")], env)
+    plot_traces(encoders, png)
+    out.print(f"{escape(str(png))}: {len(encoders)} encoders")

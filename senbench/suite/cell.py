@@ -1,0 +1,139 @@
+"""The cell: one (env, method, variant, seed) of a suite, typed, built once at expansion.
+
+Every layer below the suite reads a cell's attributes; nothing reads it by string key. A
+cell has two kinds of field:
+
+- **labels** (suite, method, variant, hyperparams source, threshold) name it in reports and
+  never change what it computes;
+- **the computation** (env and its options, agent and its resolved hyperparameters,
+  observation, encoder spec, pixel spec, seed, budget, evaluation protocol, threads).
+
+Its id is a hash of the computation and :data:`CURVE_VERSION` only, so two cells that
+compute the same curve — in one suite under two names, or in two suites — have one id and
+one result file name, and ``run --reuse`` is a lookup by id.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+from senbench.encoders import EncoderRequest, Training
+from senbench.observe.pixels import PixelSpec
+
+CURVE_VERSION = 1
+"""The version of the code that computes curves. Raise it when a change to senbench alters
+what an existing cell computes (an agent's update, the evaluation, the observation
+pipeline): every cell then gets a new id, so a finished result of the old code is never
+taken for one of the new. Version 1: the ids of senbench's layered layout (before it, ids
+hashed the labels too; ``scripts/migrate_cell_ids.py`` renamed the files of that time)."""
+
+
+@dataclass(frozen=True)
+class Cell:
+    # labels: they name the cell and never change its curve
+    suite: str
+    method: str
+    variant: str
+    """``path=value`` pairs joined by ``,``; empty for a method's base variant."""
+    # the computation
+    env: str
+    agent: str
+    observation: str
+    """``state``, ``pixels`` or ``encoded``."""
+    seed: int
+    budget: int
+    """Frames (environment steps) the agent learns for."""
+    eval_every: int
+    """Frames between evaluations."""
+    eval_episodes: int
+    max_episode_steps: int
+    threads: int
+    """torch threads: float sums, and so curves, can differ with the count."""
+    hyperparams: dict[str, Any] = field(default_factory=dict)
+    """The agent's config after defaults: every field of its config class."""
+    env_options: dict[str, Any] = field(default_factory=dict)
+    encoder: dict[str, Any] | None = None
+    """The resolved encoder entry (architecture and sampler configs completed with their
+    defaults), for an ``encoded`` observation."""
+    pixels: PixelSpec | None = None
+    """Frame size and stack, where frames are drawn (``pixels`` and ``encoded``)."""
+    # more labels
+    threshold: float = 0.0
+    """The evaluation return that counts as solved: read by the analysis only."""
+    variant_values: dict[str, Any] = field(default_factory=dict)
+    """The variant's ``path → value`` overrides."""
+    hyperparams_source: str = ""
+    """Where the agent's defaults for this env came from (a table, a paper)."""
+
+    def curve(self) -> dict[str, Any]:
+        """What determines the cell's curve: the id hashes exactly this."""
+        return {
+            "curve_version": CURVE_VERSION,
+            "env": {"name": self.env, "max_episode_steps": self.max_episode_steps,
+                    "options": self.env_options},
+            "agent": self.agent, "observation": self.observation,
+            "hyperparams": self.hyperparams, "encoder": self.encoder,
+            "pixels": None if self.pixels is None else dataclasses.asdict(self.pixels),
+            "seed": self.seed, "budget": self.budget,
+            "eval": {"every": self.eval_every, "episodes": self.eval_episodes},
+            "threads": self.threads,
+        }
+
+    @property
+    def id(self) -> str:
+        canonical = json.dumps(self.curve(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(canonical.encode()).hexdigest()[:16]
+
+    @property
+    def label(self) -> str:
+        variant = f"[{self.variant}]" if self.variant else ""
+        return f"{self.env}/{self.method}{variant} seed {self.seed}"
+
+    def config(self) -> dict[str, Any]:
+        """The resolved config as a result file's ``config`` column records it (JSON):
+        the computation and the labels, in the layout of every result written so far."""
+        curve = self.curve()
+        return {
+            "env": {**curve["env"], "threshold": self.threshold},
+            "method": self.method, "agent": self.agent, "observation": self.observation,
+            "hyperparams": self.hyperparams, "encoder": self.encoder, "pixels": curve["pixels"],
+            "variant": self.variant_values, "seed": self.seed, "budget": self.budget,
+            "eval": curve["eval"], "threads": self.threads,
+        }
+
+    @classmethod
+    def from_config(cls, config: dict[str, Any], suite: str, variant: str = "",
+                    hyperparams_source: str = "") -> Cell:
+        """The cell a result file's ``config`` column describes."""
+        return cls(
+            suite=suite, method=config["method"], variant=variant, env=config["env"]["name"],
+            agent=config["agent"], observation=config["observation"], seed=config["seed"],
+            budget=config["budget"], eval_every=config["eval"]["every"],
+            eval_episodes=config["eval"]["episodes"],
+            max_episode_steps=config["env"]["max_episode_steps"], threads=config["threads"],
+            hyperparams=config["hyperparams"], env_options=config["env"]["options"],
+            encoder=config.get("encoder"),
+            pixels=PixelSpec(**config["pixels"]) if config.get("pixels") else None,
+            threshold=float(config["env"]["threshold"]),
+            variant_values=config.get("variant") or {}, hyperparams_source=hyperparams_source)
+
+    def replace(self, **changes: Any) -> Cell:
+        return dataclasses.replace(self, **changes)
+
+    def encoder_request(self) -> EncoderRequest | None:
+        """The state encoder this cell observes through, if any."""
+        if self.encoder is None:
+            return None
+        entry = self.encoder
+        assert self.pixels is not None, "an encoded observation draws frames"
+        return EncoderRequest(
+            env=self.env, pixels=self.pixels, arch=entry["arch"], sampler=entry["sampler"],
+            samples=entry["samples"], fraction=entry["fraction"], seed=entry["seed"],
+            arch_config=entry["config"], sampler_config=entry["sampler_config"],
+            training=Training(epochs=entry["epochs"], batch_size=entry["batch_size"],
+                              learning_rate=entry["learning_rate"], patience=entry["patience"],
+                              lr_decay=entry["lr_decay"], test_samples=entry["test_samples"]))
