@@ -6,14 +6,20 @@ BIN := $(VENV)/bin
 # Pins the CPU build of torch; without it pip pulls a CUDA build of several GB.
 CONSTRAINTS := constraints/cpu.txt
 
-.PHONY: demo test lint clean
+.PHONY: demo test test-fast lint clean
 
 demo: $(VENV)/.installed
 	$(BIN)/senbench run suites/quickstart.yaml --workers 2
 	$(BIN)/senbench report results/quickstart
 
+# Two pytest workers (pytest-xdist): many tests wait on the processes they start, so two
+# at a time keep both cores busy.
 test: $(VENV)/.installed-dev
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q -n 2
+
+# The tier to run on every change: everything but the tests marked slow (under 90 s).
+test-fast: $(VENV)/.installed-dev
+	$(BIN)/pytest -q -m "not slow"
 
 lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check .

@@ -33,6 +33,7 @@ def learn(agent_name, env_name, budget, seed=0, **hyperparams):
     return learner, log
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_sarsa_learns_mountaincar_on_the_state(seed):
     # Measured: the rolling-10 return reaches -150 within 4.1k frames (median of 6 seeds,
@@ -57,6 +58,7 @@ def test_sarsa_stops_exactly_at_the_budget_and_reports_every_frame():
     assert all(0 < length <= 200 for _, _, length in log.episodes)
 
 
+@pytest.mark.slow
 def test_ppo_stops_exactly_at_the_budget_and_reports_episodes():
     _, log = learn("ppo", "pendulum", 1024, n_envs=2, n_steps=128, batch_size=64, n_epochs=1)
     assert log.steps[0] == 0 and log.steps[-1] == 1024
@@ -77,7 +79,8 @@ def test_sb3_agents_leave_no_log_folder_behind(agent, tmp_path, monkeypatch):
 
 def test_recorder_evaluates_at_zero_every_interval_and_the_budget():
     calls = []
-    recorder = CellRecorder(1000, 300, lambda: calls.append(1) or (0.0, 0.0, 1.0))
+    recorder = CellRecorder(1000, 300, lambda: calls.append(1) or {"return": 0.0, "return_std": 0.0,
+                                                           "length": 1.0})
     for steps in range(0, 1001, 4):
         more = recorder.step(steps)
     assert not more
@@ -101,6 +104,7 @@ eval: {every: 1024, episodes: 2}
 """
 
 
+@pytest.mark.slow
 def test_the_same_seed_gives_the_same_curves(write_suite, tmp_path):
     suite = load_suite(write_suite(DETERMINISM), registries())
     curves = []

@@ -116,6 +116,7 @@ def _done(run: subprocess.CompletedProcess) -> set[str]:
             for line in run.stderr.splitlines() if line.startswith("done ")}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("force", [False, True])
 def test_two_runs_of_one_suite_at_once_compute_each_cell_once(write_suite, tmp_path, cli_env,
                                                               test_agents, force):
@@ -143,6 +144,7 @@ def test_two_runs_of_one_suite_at_once_compute_each_cell_once(write_suite, tmp_p
     assert all(finished_status(path) == "ok" for path in cells.glob("*.parquet"))
 
 
+@pytest.mark.slow
 def test_the_cli_passes_over_a_held_cell_and_status_shows_it_running(
         write_suite, tmp_path, cli_env, test_agents):
     suite_file = write_suite(SLOW)
@@ -176,6 +178,7 @@ def test_the_cli_passes_over_a_held_cell_and_status_shows_it_running(
     assert "1 finished" in again.stdout and "5 already done" in again.stdout
 
 
+@pytest.mark.slow
 def test_a_cell_another_run_left_unfinished_makes_the_exit_75(write_suite, tmp_path,
                                                               test_agents, monkeypatch):
     suite = load_suite(write_suite(SLOW), registries())

@@ -70,6 +70,7 @@ def cli(*args):
                           text=True, env=env)
 
 
+@pytest.mark.slow
 def test_compare_cli_two_methods_two_folders_and_mistakes(tmp_path):
     folder = write_fake(tmp_path, "cmp", ["a", "b"])
     done = cli("compare", "a", "b", "--results", str(folder))
@@ -91,6 +92,7 @@ def test_compare_cli_two_methods_two_folders_and_mistakes(tmp_path):
     assert done.returncode == 2 and "holds several suites (one, three)" in done.stderr
 
 
+@pytest.mark.slow
 def test_folders_run_at_different_budgets_are_not_compared(tmp_path):
     left = write_fake(tmp_path / "l", "one", ["a"])
     right = write_fake(tmp_path / "r", "two", ["b"], budget=8000)
@@ -99,6 +101,7 @@ def test_folders_run_at_different_budgets_are_not_compared(tmp_path):
     assert "for 4,000 frames" in done.stderr and "for 8,000" in done.stderr
 
 
+@pytest.mark.slow
 def test_plot_curves_draws_every_method_on_the_shared_frames(tmp_path):
     folder = write_fake(tmp_path, "cmp", ["a", "b"])
     curves = learning_curves(read_results(folder))
@@ -136,6 +139,7 @@ def test_compare_two_folders_at_another_threshold(write_suite, tmp_path):
         pairs_across_folders(tmp_path / "a", tmp_path / "b", thresholds={"pendulum": -300.0})
 
 
+@pytest.mark.slow
 def test_compare_writes_its_numbers_to_a_table_file(tmp_path):
     folder = write_fake(tmp_path, "cmp", ["a", "b"])
     out = tmp_path / "p.csv"

@@ -47,6 +47,7 @@ def test_architectures_map_frame_stacks_to_the_observation(arch, env, outputs):
         assert out.shape == (5, outputs)
 
 
+@pytest.mark.slow
 def test_a_small_encoder_fits_a_small_dataset(tmp_path):
     torch.set_num_threads(1)
     fit = request(samples=400, training=Training(epochs=25, patience=25, test_samples=200,
@@ -58,6 +59,7 @@ def test_a_small_encoder_fits_a_small_dataset(tmp_path):
     assert position["rmse_pct_of_range"] < 15  # far better than guessing the mean (≈ 29%)
 
 
+@pytest.mark.slow
 def test_a_second_request_with_the_same_spec_loads_the_cache(tmp_path):
     torch.set_num_threads(1)
     said = []
@@ -72,6 +74,7 @@ def test_a_second_request_with_the_same_spec_loads_the_cache(tmp_path):
     assert request().id != request(fraction=0.5).id != request(seed=1).id
 
 
+@pytest.mark.slow
 def test_the_same_spec_trained_twice_gives_the_same_encoder(tmp_path):
     # A cache lost with a machine is trained again: the cells that resume must see the
     # encoder the finished cells saw.
@@ -178,6 +181,7 @@ variants:
 """
 
 
+@pytest.mark.slow
 def test_a_suite_trains_each_encoder_once_and_cells_share_it(write_suite, tmp_path):
     suite = load_suite(write_suite(SEN), registries())
     assert len(suite.cells) == 4
@@ -200,7 +204,7 @@ def test_suite_checks_encoder_settings(write_suite):
     with pytest.raises(SuiteError, match="Known encoders: nature-cnn, sen-resnet"):
         load_suite(write_suite(bad), registries())
     bad = SEN.replace("widths: [8, 8, 16, 16]", "widths: [8, 8, 16]")
-    with pytest.raises(SuiteError, match="widths must be four positive channel counts"):
+    with pytest.raises(SuiteError, match="widths: List should have at least 4 items"):
         load_suite(write_suite(bad), registries())
     bad = SEN.replace("observation: encoded", "observation: state")
     with pytest.raises(SuiteError, match="an encoder is needed exactly when"):
@@ -227,6 +231,7 @@ eval: {every: 5000, episodes: 5}
 """
 
 
+@pytest.mark.slow
 def test_sen_sarsa_learns_mountaincar_from_frames(write_suite, tmp_path):
     # SEN-DRL end to end: a small encoder (≈ 1.7% / 4% error) trained from frames, then
     # SARSA on its estimates. A random or untrained policy never reaches the flag in 200
@@ -298,6 +303,7 @@ def test_the_encoder_runs_frozen_only_for_architectures_that_declare_it():
     assert np.allclose(estimate, np.clip(eager, low, high), atol=1e-5)
 
 
+@pytest.mark.slow
 def test_encoder_train_from_the_command_line_names_a_thread_count_other_than_2(tmp_path):
     import subprocess
     import sys

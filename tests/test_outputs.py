@@ -42,6 +42,7 @@ def cli(*args):
                           text=True)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args", [
     ("plot", "curves", "{tmp}/no-results", "--out", "{tmp}/c.txt"),
     ("plot", "traces", "--out", "{tmp}"),
@@ -61,6 +62,7 @@ def test_commands_refuse_an_out_file_before_doing_anything(tmp_path, args):
     assert sorted(tmp_path.rglob("*")) == before  # no study, no figure, no folder
 
 
+@pytest.mark.slow
 def test_plot_traces_train_needs_the_results_folder_it_trains_for(tmp_path):
     done = cli("plot", "traces", "--train", "--out", str(tmp_path / "t.png"))
     assert done.returncode == 2 and "--train trains the encoders of --results" in done.stderr

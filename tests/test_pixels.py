@@ -140,6 +140,7 @@ def test_area_resize_averages_blocks_and_keeps_constants():
     assert np.allclose(area_resize(np.full((400, 600), 7.0), 64, 64), 7.0)
 
 
+@pytest.mark.slow
 def test_show_writes_a_comparison_png(tmp_path):
     import subprocess
     import sys

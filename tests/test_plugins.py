@@ -67,7 +67,7 @@ def test_unknown_name_lists_the_known_ones_and_suggests_the_closest():
         plugins.registries().envs.get("mountaincr")
     message = str(info.value)
     assert "Did you mean 'mountaincar'?" in message
-    assert "mountaincar, pendulum" in message
+    assert "mountaincar, mountaincar-bars, pendulum, pendulum-bars" in message
 
 
 def test_register_checks_the_type_and_names_the_distribution():

@@ -49,6 +49,7 @@ def curves(folder: Path) -> pd.DataFrame:
 
 # The CLI tests come first, before the module's shared instance exists: the CLI starts a
 # local instance of its own for the run and stops it.
+@pytest.mark.slow
 def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path,
                                                                         monkeypatch):
     (tmp_path / "tiny.yaml").write_text(TINY)
@@ -86,6 +87,7 @@ def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path
 
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("stop", ["ctrl-c", "sigterm"])
 def test_stopping_a_ray_run_stops_its_tasks_leaving_only_finished_cells(tmp_path, cli_env,
                                                                           stop):
@@ -152,6 +154,7 @@ def attempts(counter: Path) -> int:
     return len(counter.read_text().splitlines())
 
 
+@pytest.mark.slow
 def test_a_cell_whose_worker_is_killed_is_retried(local_ray, test_agents, tmp_path):
     suite, counter = dies(tmp_path, times=1)
     summary = run_suite(suite, tmp_path / "results", executor="ray", retries=1)
@@ -163,6 +166,7 @@ def test_a_cell_whose_worker_is_killed_is_retried(local_ray, test_agents, tmp_pa
         "die-state": 600, "sarsa-state": 600}
 
 
+@pytest.mark.slow
 def test_a_cell_that_dies_every_time_is_recorded_failed_after_its_retries(
         local_ray, test_agents, tmp_path):
     suite, counter = dies(tmp_path, times=99)
@@ -181,6 +185,7 @@ def test_a_cell_that_dies_every_time_is_recorded_failed_after_its_retries(
     assert attempts(counter) == 4
 
 
+@pytest.mark.slow
 def test_an_agent_error_is_a_failed_cell_not_a_retry(local_ray, test_agents, tmp_path):
     suite, counter = dies(tmp_path, times=0, after=10)
     summary = run_suite(suite, tmp_path / "results", executor="ray", retries=3)
@@ -189,6 +194,7 @@ def test_an_agent_error_is_a_failed_cell_not_a_retry(local_ray, test_agents, tmp
     assert attempts(counter) == 1
 
 
+@pytest.mark.slow
 def test_an_error_before_the_cell_runs_is_recorded_with_its_cause(local_ray, tmp_path):
     (tmp_path / "s.yaml").write_text(TINY.replace("seeds: 2", "seeds: 1"))
     suite = load_suite(tmp_path / "s.yaml", registries())
@@ -204,6 +210,7 @@ def test_an_error_before_the_cell_runs_is_recorded_with_its_cause(local_ray, tmp
                "senbench_plugin_only_on_the_driver" in o.error for o in summary.failed)
 
 
+@pytest.mark.slow
 def test_cells_needing_more_cpus_than_any_node_are_refused_not_left_pending(local_ray,
                                                                            tmp_path):
     (tmp_path / "s.yaml").write_text(TINY + "threads: 4\n")
@@ -220,6 +227,7 @@ class StopAtFirstStart(GridProgress):
         raise KeyboardInterrupt
 
 
+@pytest.mark.slow
 def test_an_interrupt_cancels_the_tasks_on_a_cluster_it_did_not_start(local_ray, test_agents,
                                                                       tmp_path):
     # On a cluster it joined, the runner cannot rely on shutting Ray down: it must cancel.
@@ -235,6 +243,7 @@ def test_an_interrupt_cancels_the_tasks_on_a_cluster_it_did_not_start(local_ray,
     assert not list((tmp_path / "results" / "slow" / "cells").glob("*.parquet"))
 
 
+@pytest.mark.slow
 def test_address_without_the_ray_executor_is_refused(tmp_path):
     (tmp_path / "s.yaml").write_text(TINY)
     done = subprocess.run([sys.executable, "-m", "senbench", "run", str(tmp_path / "s.yaml"),

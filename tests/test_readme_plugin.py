@@ -66,6 +66,7 @@ def senbench(env: dict[str, str], *args: str, cwd: Path) -> subprocess.Completed
                           capture_output=True, text=True, timeout=120, check=False)
 
 
+@pytest.mark.slow
 def test_the_doc_plugin_lists_runs_and_reports(installed, tmp_path):
     suite, env = installed
 

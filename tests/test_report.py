@@ -34,6 +34,7 @@ def test_summary_counts_finished_and_failed_seeds(write_suite, tmp_path, test_ag
     assert summary.loc["sarsa-state", "initial_mean"] == -200  # untrained: never reaches the flag
 
 
+@pytest.mark.slow
 def test_report_cli_prints_a_table_per_env(write_suite, tmp_path):
     text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
     run_suite(load_suite(write_suite(text), registries()), tmp_path)
@@ -73,6 +74,7 @@ def test_returns_at_frames_are_each_seeds_last_evaluation_up_to_there():
     assert table.loc[250, "seeds"] == 0 and pd.isna(table.loc[250, "mean"])  # past the end
 
 
+@pytest.mark.slow
 def test_report_on_a_folder_without_results_says_so(tmp_path):
     with pytest.raises(ResultsError, match="no cell results"):
         read_results(tmp_path)
@@ -82,6 +84,7 @@ def test_report_on_a_folder_without_results_says_so(tmp_path):
     assert "Traceback" not in done.stderr
 
 
+@pytest.mark.slow
 def test_results_read_with_one_glob_without_senbench(write_suite, tmp_path):
     text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
     run_suite(load_suite(write_suite(text), registries()), tmp_path)
@@ -102,6 +105,7 @@ print(n_duck, n_polars, n_pandas)
     assert done.stdout.split() == ["2", "2", "2"]
 
 
+@pytest.mark.slow
 def test_report_leaves_out_cells_of_an_earlier_version_of_the_suite(write_suite, tmp_path):
     text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
     run_suite(load_suite(write_suite(text), registries()), tmp_path)
@@ -123,6 +127,7 @@ def test_a_foreign_file_in_the_results_folder_is_a_clear_error(tmp_path):
         read_results(tmp_path)
 
 
+@pytest.mark.slow
 def test_variant_labels_show_in_brackets(write_suite, tmp_path):
     text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
     text += "variants:\n  sarsa-state:\n    hyperparams.alpha: [0.5, 1.0]\n"
@@ -150,6 +155,7 @@ def test_status_counts_finished_failed_and_left_and_estimates_the_time(
     assert (crash.ok, crash.failed, crash.to_run, crash.left_s) == (0, 2, 3, None)
 
 
+@pytest.mark.slow
 def test_status_cli_prints_the_table_and_what_is_left(write_suite, tmp_path):
     text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
     suite_file = write_suite(text)
@@ -181,6 +187,7 @@ def test_a_bad_threshold_says_how_to_write_one(specs, message):
         parse_thresholds(specs)
 
 
+@pytest.mark.slow
 def test_another_threshold_changes_frames_to_threshold_and_the_title(write_suite, tmp_path):
     text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")
     run_suite(load_suite(write_suite(text), registries()), tmp_path)
@@ -202,6 +209,7 @@ def test_another_threshold_changes_frames_to_threshold_and_the_title(write_suite
     assert "threshold -200" in done.stdout and "not reached" not in done.stdout
 
 
+@pytest.mark.slow
 def test_report_writes_its_summary_to_csv_or_parquet_and_refuses_other_files(write_suite,
                                                                                tmp_path):
     text = SUITE.replace("  crash-state: {agent: crash, hyperparams: {after: 5}}\n", "")

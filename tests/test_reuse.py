@@ -49,6 +49,7 @@ def load(write_suite, text, name):
     return load_suite(write_suite(text, name), registries())
 
 
+@pytest.mark.slow
 def test_a_cell_the_same_but_for_its_names_is_copied_and_equals_running_it(
         write_suite, tmp_path):
     main = load(write_suite, MAIN, "main.yaml")
@@ -96,6 +97,7 @@ def test_a_cell_another_run_holds_is_neither_copied_nor_run(write_suite, tmp_pat
     assert not (cells / f"{held.id}.parquet").exists()
 
 
+@pytest.mark.slow
 def test_a_cell_that_differs_in_anything_else_is_run(write_suite, tmp_path):
     main = load(write_suite, MAIN.replace("budget: 1500", "budget: 1000"), "main.yaml")
     run_suite(main, tmp_path / "results")
@@ -161,6 +163,7 @@ def set_column(table, name, value, path):
     pq.write_table(table, path)
 
 
+@pytest.mark.slow
 def test_the_cli_says_how_many_cells_it_copied(write_suite, tmp_path, cli_env):
     run_suite(load(write_suite, MAIN, "main.yaml"), tmp_path / "results")
     older = sorted((tmp_path / "results" / "main" / "cells").glob("*.parquet"))[0]

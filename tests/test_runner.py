@@ -59,6 +59,7 @@ def test_each_cell_writes_one_file_with_the_documented_schema(write_suite, tmp_p
     assert (tmp_path / "results" / "small" / "suite.yaml").exists()
 
 
+@pytest.mark.slow
 def test_resume_skips_finished_cells_and_ignores_a_stray_temp_file(write_suite, tmp_path):
     suite, _ = run(write_suite, tmp_path, SARSA)
     files = cell_files(tmp_path)
@@ -102,6 +103,7 @@ def test_a_failing_cell_is_recorded_and_the_grid_goes_on(write_suite, tmp_path, 
     assert again.skipped == 1 and [o.label for o in again.outcomes] == [failed.label]
 
 
+@pytest.mark.slow
 def test_two_workers_give_the_same_curves_as_serial(write_suite, tmp_path, test_agents):
     text = SARSA.replace("  mountaincar: {}\n", "  mountaincar: {}\n  pendulum: {budget: 1024}\n")
     text = text.replace("  sarsa-state: {agent: sarsa}\n", """\
@@ -121,6 +123,7 @@ def test_two_workers_give_the_same_curves_as_serial(write_suite, tmp_path, test_
     assert set(second["threads"]) == {1}  # the suite's, whatever the number of workers
 
 
+@pytest.mark.slow
 def test_a_cell_that_dies_fails_alone(write_suite, tmp_path, test_agents):
     # cells that kill their own process, next to cells that run on: out-of-memory kills
     # look like this to the runner
@@ -146,6 +149,7 @@ def _wait_for_files(directory, count, process, timeout=90):
     pytest.fail(f"no {count} result files after {timeout} s")
 
 
+@pytest.mark.slow
 def test_sigkill_then_rerun_gives_every_cell_exactly_once(write_suite, tmp_path, cli_env):
     suite_file = write_suite(SLOW)
     results = tmp_path / "results"
@@ -172,6 +176,7 @@ def test_sigkill_then_rerun_gives_every_cell_exactly_once(write_suite, tmp_path,
     assert all(finished_status(f) == "ok" for f in files)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("stop", ["ctrl-c", "sigterm"])
 def test_ctrl_c_stops_cleanly_leaving_only_finished_cells(write_suite, tmp_path, cli_env, stop):
     suite_file = write_suite(SLOW.replace("sleep_s: 0.002", "sleep_s: 0.004"))
@@ -197,6 +202,7 @@ def test_ctrl_c_stops_cleanly_leaving_only_finished_cells(write_suite, tmp_path,
     assert not list(cells.glob(".*.tmp"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", [1, 2])
 def test_sys_exit_in_an_agent_fails_that_cell_only(write_suite, tmp_path, test_agents, workers):
     text = FAILING.replace("crash-state: {agent: crash, hyperparams: {after: 700}}",
@@ -206,6 +212,7 @@ def test_sys_exit_in_an_agent_fails_that_cell_only(write_suite, tmp_path, test_a
     assert "SystemExit: 3" in summary.failed[0].error
 
 
+@pytest.mark.slow
 def test_cells_fail_rather_than_hang_when_a_plugin_cannot_be_imported_by_workers(
         write_suite, tmp_path):
     import types
@@ -301,6 +308,7 @@ TWO_METHODS = SARSA.replace("seeds: 3", "seeds: 2").replace(
 SWEPT = TWO_METHODS + "variants:\n  sarsa-fast:\n    hyperparams.trace_decay: [0.8, 0.9]\n"
 
 
+@pytest.mark.slow
 def test_method_and_seed_options_run_only_that_part_of_the_grid(write_suite, tmp_path,
                                                                    cli_env):
     suite_file = write_suite(TWO_METHODS)

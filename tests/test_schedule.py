@@ -156,6 +156,7 @@ def test_a_cell_that_had_failed_counts_when_another_run_finishes_it(
     assert plan.next() is None and plan.expected_s(slow[1]) == 95.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_time_limit_runs_what_fits_and_leaves_the_rest(write_suite, tmp_path, test_agents,
                                                          workers):
@@ -176,6 +177,7 @@ def test_a_time_limit_runs_what_fits_and_leaves_the_rest(write_suite, tmp_path, 
                for c in suite.cells)
 
 
+@pytest.mark.slow
 def test_the_cli_exits_75_when_the_time_limit_leaves_cells(write_suite, tmp_path, cli_env):
     suite_file = write_suite(MIXED)
     command = [sys.executable, "-m", "senbench", "run", str(suite_file), "--results",
@@ -193,6 +195,7 @@ def test_the_cli_exits_75_when_the_time_limit_leaves_cells(write_suite, tmp_path
     assert bad.returncode == 2 and "write it as 2h30m" in bad.stderr
 
 
+@pytest.mark.slow
 def test_a_failed_cell_makes_the_exit_1_even_with_cells_left(write_suite, tmp_path, cli_env):
     suite_file = write_suite(MIXED.replace(
         "  sarsa-state: {agent: sarsa}\n",

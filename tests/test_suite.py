@@ -79,7 +79,7 @@ BAD = {
     ),
     "unknown env": (
         GOOD.replace("  pendulum: {budget: 4000}", "  cartpole: {}"),
-        ["suite.yaml:4", "envs.cartpole", "Known envs: mountaincar, pendulum"],
+        ["suite.yaml:4", "envs.cartpole", "Known envs: mountaincar, mountaincar-bars, pendulum"],
     ),
     "unknown hyperparameter": (
         GOOD.replace("alpha: 0.8", "alhpa: 0.8"),
@@ -140,12 +140,46 @@ BAD = {
                                ["envs.mountaincar.threshold", "finite"]),
     "hyperparameter out of range": (GOOD.replace("alpha: 0.8", "alpha: 0.8, tilings: 0"),
                                     ["suite.yaml:9", "hyperparams.tilings",
-                                     "tilings and tiles must be at least 1"]),
+                                     "greater than or equal to 1 (got 0)"]),
     "a boolean for a count": (GOOD.replace("alpha: 0.8", "alpha: 0.8, tiles: true"),
                               ["hyperparams.tiles", "expected int"]),
     "self-referencing alias": (GOOD.replace("name: grid", "name: grid\ndescription: &a [*a]"),
                                ["description", "valid string"]),
 }
+
+
+def test_a_hyperparameter_out_of_range_is_reported_at_its_own_line(write_suite):
+    text = GOOD.replace("    hyperparams: {alpha: 0.8}\n",
+                        "    hyperparams:\n      alpha: 0.8\n      gamma: 1.5\n")
+    with pytest.raises(SuiteError) as info:
+        load(write_suite, text)
+    message = str(info.value)
+    assert "1 problem\n" in message
+    assert ("suite.yaml:11: methods.sarsa-state.hyperparams.gamma: Input should be less than "
+            "or equal to 1 (got 1.5)") in message, message
+
+
+def test_two_hyperparameters_out_of_range_in_one_method_are_both_reported(write_suite):
+    text = GOOD.replace("    hyperparams: {alpha: 0.8}\n",
+                        "    hyperparams:\n      alpha: -0.8\n      tiles: 0\n")
+    with pytest.raises(SuiteError) as info:
+        load(write_suite, text)
+    message = str(info.value)
+    assert "2 problems" in message, message
+    assert ("suite.yaml:10: methods.sarsa-state.hyperparams.alpha: Input should be greater "
+            "than 0 (got -0.8)") in message, message
+    assert ("suite.yaml:11: methods.sarsa-state.hyperparams.tiles: Input should be greater "
+            "than or equal to 1 (got 0)") in message, message
+
+
+def test_a_check_across_hyperparameters_lands_on_the_key_it_names(write_suite):
+    text = GOOD.replace("    observation: state\n",
+                        "    observation: state\n    hyperparams:\n      n_steps: 16\n"
+                        "      batch_size: 64\n")
+    with pytest.raises(SuiteError) as info:
+        load(write_suite, text)
+    assert ("suite.yaml:15: methods.ppo-state.hyperparams.batch_size: batch_size must be at "
+            "most a rollout, n_steps * n_envs = 16, got 64") in str(info.value)
 
 
 def test_scientific_notation_reads_as_a_number(write_suite):
@@ -175,6 +209,7 @@ def test_a_bad_suite_is_refused_with_a_located_message(write_suite, case):
         assert fragment in message, f"{fragment!r} not in:\n{message}"
 
 
+@pytest.mark.slow
 def test_cli_refuses_a_bad_suite_with_exit_2_no_traceback_and_writes_nothing(write_suite,
                                                                                tmp_path):
     path = write_suite(BAD["typo in a key"][0])
@@ -195,6 +230,7 @@ def _env():
     return dict(os.environ)
 
 
+@pytest.mark.slow
 def test_cli_validate_counts_the_cells(write_suite):
     done = subprocess.run([sys.executable, "-m", "senbench", "validate", str(write_suite(GOOD))],
                           capture_output=True, text=True, env={**_env(), "COLUMNS": "200"})

@@ -41,6 +41,7 @@ def study_of(tmp_path, name="sarsa-state-mountaincar-auc"):
                              storage=f"sqlite:///{tmp_path / 'results' / 'tiny' / 'tune.db'}")
 
 
+@pytest.mark.slow
 def test_a_study_runs_resumes_and_exports_a_block_a_suite_runs(tmp_path):
     (tmp_path / "s.yaml").write_text(SUITE)
     done = tune(tmp_path, "--trials", "2")
@@ -64,6 +65,7 @@ def test_a_study_runs_resumes_and_exports_a_block_a_suite_runs(tmp_path):
     assert "1 finished, 0 failed" in ran.stdout
 
 
+@pytest.mark.slow
 def test_two_processes_share_one_study(tmp_path):
     (tmp_path / "s.yaml").write_text(SUITE)
     (tmp_path / "results" / "tiny").mkdir(parents=True)
@@ -103,6 +105,7 @@ def test_the_pruner_stops_a_trial_whose_seed_mean_curve_falls_behind():
     assert study.trials[0].intermediate_values == {1000: -95.0, 2000: -85.0}  # seed means
 
 
+@pytest.mark.slow
 def test_a_killed_trial_is_marked_failed_by_the_next_process(tmp_path, monkeypatch):
     monkeypatch.setattr(tuning, "HEARTBEAT_S", 1)
     monkeypatch.setattr(tuning, "GRACE_S", 2)
@@ -168,6 +171,7 @@ tune:
 """
 
 
+@pytest.mark.slow
 def test_an_encoder_setting_is_tuned_with_the_agent_and_exported_in_its_block(tmp_path):
     (tmp_path / "s.yaml").write_text(SEN)
     tgt = tuning.target(load_suite(tmp_path / "s.yaml", registries()), "sen-sarsa", None,
@@ -192,6 +196,7 @@ def test_an_encoder_setting_is_tuned_with_the_agent_and_exported_in_its_block(tm
     assert "encoder.batch_norm" not in block["hyperparams"]
 
 
+@pytest.mark.slow
 def test_a_bad_option_is_refused_before_any_storage_is_made(tmp_path):
     (tmp_path / "s.yaml").write_text(SUITE)
     for bad in (["--objective", "median"], ["--sampler", "grid"], ["--pruner", "asha"]):
@@ -219,6 +224,7 @@ def test_the_trials_table_lists_the_best_finished_trials_first_with_the_counts()
     assert list(trials_table(minimize, "m", "auc").columns[0].cells) == ["0", "2", "1"]
 
 
+@pytest.mark.slow
 def test_exporting_a_study_with_no_finished_trial_fails_and_writes_nothing(tmp_path):
     (tmp_path / "s.yaml").write_text(SUITE)
     (tmp_path / "results" / "tiny").mkdir(parents=True)

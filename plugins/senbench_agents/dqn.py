@@ -14,53 +14,43 @@ online network's argmax and −∞ elsewhere: the max over actions is then the D
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from functools import cache
 
 import numpy as np
+from pydantic.dataclasses import dataclass
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
+from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import is_frame_stack, learn_with_recorder, monitored_vec_env
 
 
 @dataclass
 class DQNConfig:
-    learning_rate: float = 1e-4
-    buffer_size: int = 100_000
+    learning_rate: PositiveFloat = 1e-4
+    buffer_size: PositiveInt = 100_000
     """Transitions kept; on 2x64x64 frames each costs 16 KB (obs and next obs), 8 KB
     with ``optimize_memory_usage``."""
-    learning_starts: int = 1000
-    batch_size: int = 32
-    tau: float = 1.0
-    gamma: float = 0.99
-    train_freq: int = 4
+    learning_starts: NonNegativeInt = 1000
+    batch_size: PositiveInt = 32
+    tau: Probability = 1.0
+    gamma: Probability = 0.99
+    train_freq: PositiveInt = 4
     """Frames between updates."""
-    gradient_steps: int = 1
-    target_update_interval: int = 1000
-    exploration_fraction: float = 0.1
-    exploration_initial_eps: float = 1.0
-    exploration_final_eps: float = 0.05
+    gradient_steps: PositiveInt = 1
+    target_update_interval: PositiveInt = 1000
+    exploration_fraction: Probability = 0.1
+    exploration_initial_eps: Probability = 1.0
+    exploration_final_eps: Probability = 0.05
     max_grad_norm: float = 10.0
-    net_arch: list[int] = field(default_factory=list)
+    net_arch: list[PositiveInt] = field(default_factory=list)
     """Hidden layers of the Q head (after the CNN on pixels; the whole MLP on the state)."""
-    features_dim: int = 512
+    features_dim: PositiveInt = 512
     """Output of the CNN on pixels (SB3's NatureCNN: 3 convolutions and a linear layer)."""
     optimize_memory_usage: bool = False
     """Store each observation once (SB3's option): halves the buffer, but SB3 then cannot
     tell a time-limit truncation from a termination, so the last step of a truncated
     episode is not bootstrapped. Off by default for that reason."""
-
-    def __post_init__(self) -> None:
-        for name in ("buffer_size", "batch_size", "train_freq", "gradient_steps",
-                     "target_update_interval", "features_dim"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
-        if self.learning_rate <= 0 or self.learning_starts < 0:
-            raise ValueError("learning_rate must be positive and learning_starts >= 0")
-        for name in ("tau", "gamma", "exploration_fraction", "exploration_initial_eps",
-                     "exploration_final_eps"):
-            if not 0 <= getattr(self, name) <= 1:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
 
 
 @cache
@@ -172,8 +162,11 @@ def dqn_spec(name: str, agent: type, description: str) -> AgentSpec:
     return AgentSpec(name=name, make=agent, config=DQNConfig,
                      actions=frozenset({"discrete"}),
                      observations=frozenset({"pixels", "state", "encoded"}),
+                     # mountaincar-bars: the same task drawn as bars (the pixel control)
                      defaults={"mountaincar": ZOO_MOUNTAINCAR,
-                               "mountaincar:pixels": ATARI_AT_1M},
+                               "mountaincar:pixels": ATARI_AT_1M,
+                               "mountaincar-bars": ZOO_MOUNTAINCAR,
+                               "mountaincar-bars:pixels": ATARI_AT_1M},
                      description=description, search_space=DQN_SPACE)
 
 

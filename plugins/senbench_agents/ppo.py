@@ -8,53 +8,46 @@ pipeline, a callback that reports frames and episodes through the one recorder p
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field
+from pydantic.dataclasses import dataclass
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
+from senbench_agents.ranges import PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import is_frame_stack, learn_with_recorder, monitored_vec_env
 
 
 @dataclass
 class PPOConfig:
-    n_envs: int = 1
+    n_envs: PositiveInt = 1
     """Parallel training envs; a budget is counted in frames over all of them."""
-    n_steps: int = 2048
+    n_steps: PositiveInt = 2048
     """Frames per env per rollout."""
-    batch_size: int = 64
-    n_epochs: int = 10
-    learning_rate: float = 3e-4
-    gamma: float = 0.99
-    gae_lambda: float = 0.95
-    clip_range: float = 0.2
+    batch_size: Annotated[int, Field(ge=2)] = 64
+    n_epochs: PositiveInt = 10
+    learning_rate: PositiveFloat = 3e-4
+    gamma: Probability = 0.99
+    gae_lambda: Probability = 0.95
+    clip_range: PositiveFloat = 0.2
     ent_coef: float = 0.0
     vf_coef: float = 0.5
     max_grad_norm: float = 0.5
     use_sde: bool = False
     """State-dependent exploration (continuous actions only)."""
     sde_sample_freq: int = -1
-    net_arch: list[int] = field(default_factory=lambda: [64, 64])
+    net_arch: Annotated[list[PositiveInt], Field(min_length=1)] = field(
+        default_factory=lambda: [64, 64])
     """Hidden layer widths of the actor and of the critic (after the CNN on pixels)."""
-    activation: str = "tanh"
+    activation: Literal["tanh", "relu"] = "tanh"
     """tanh or relu."""
 
-    def __post_init__(self) -> None:
-        for name in ("n_envs", "n_steps", "n_epochs"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
-        if not 2 <= self.batch_size <= self.n_steps * self.n_envs:
-            raise ValueError(f"batch_size must be in [2, n_steps * n_envs = "
-                             f"{self.n_steps * self.n_envs}], got {self.batch_size}")
-        if self.learning_rate <= 0 or self.clip_range <= 0:
-            raise ValueError("learning_rate and clip_range must be positive")
-        for name in ("gamma", "gae_lambda"):
-            if not 0 <= getattr(self, name) <= 1:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
-        if self.activation not in ("tanh", "relu"):
-            raise ValueError(f"activation must be tanh or relu, got {self.activation!r}")
-        if not self.net_arch or min(self.net_arch) < 1:
-            raise ValueError(f"net_arch must list positive layer widths, got {self.net_arch}")
+    def __post_init__(self) -> None:  # each field's own range is in its type
+        if self.batch_size > self.n_steps * self.n_envs:
+            raise ValueError(f"batch_size must be at most a rollout, n_steps * n_envs = "
+                             f"{self.n_steps * self.n_envs}, got {self.batch_size}")
 
 
 class PPOAgent:
@@ -100,6 +93,23 @@ class PPOAgent:
         learn_with_recorder(self.model, budget, recorder)
 
 
+ZOO_PENDULUM = AgentDefaults(
+    values={
+        "n_envs": 4,
+        "n_steps": 1024,
+        "gae_lambda": 0.95,
+        "gamma": 0.9,
+        "n_epochs": 10,
+        "ent_coef": 0.0,
+        "learning_rate": 1e-3,
+        "clip_range": 0.2,
+        "use_sde": True,
+        "sde_sample_freq": 4,
+    },
+    source="rl-baselines3-zoo hyperparams/ppo.yml, Pendulum-v1",
+)
+
+
 PPO_SPEC = AgentSpec(
     name="ppo",
     make=PPOAgent,
@@ -107,21 +117,8 @@ PPO_SPEC = AgentSpec(
     actions=frozenset({"discrete", "continuous"}),
     observations=frozenset({"state", "encoded", "pixels"}),
     defaults={
-        "pendulum": AgentDefaults(
-            values={
-                "n_envs": 4,
-                "n_steps": 1024,
-                "gae_lambda": 0.95,
-                "gamma": 0.9,
-                "n_epochs": 10,
-                "ent_coef": 0.0,
-                "learning_rate": 1e-3,
-                "clip_range": 0.2,
-                "use_sde": True,
-                "sde_sample_freq": 4,
-            },
-            source="rl-baselines3-zoo hyperparams/ppo.yml, Pendulum-v1",
-        ),
+        "pendulum": ZOO_PENDULUM,
+        "pendulum-bars": ZOO_PENDULUM,  # the same task drawn as bars (the pixel control)
         "mountaincar": AgentDefaults(
             values={},
             source="Stable-Baselines3 PPO defaults (zoo's MountainCar-v0 set needs "

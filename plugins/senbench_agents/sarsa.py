@@ -14,36 +14,27 @@ the same agent runs on the true state and, clipped to those bounds, on an encode
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
+from pydantic.dataclasses import dataclass
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Int, Recorder
+from senbench_agents.ranges import PositiveFloat, PositiveInt, Probability
 
 
 @dataclass
 class SarsaConfig:
-    tilings: int = 8
+    tilings: PositiveInt = 8
     """Number of offset tilings (each contributes one active tile)."""
-    tiles: int = 8
+    tiles: PositiveInt = 8
     """Tiles per observation dimension in each tiling."""
-    alpha: float = 0.5
+    alpha: PositiveFloat = 0.5
     """Step size for the sum over tilings; each weight moves by alpha / tilings."""
-    trace_decay: float = 0.9
+    trace_decay: Probability = 0.9
     """λ of the eligibility traces."""
-    gamma: float = 1.0
+    gamma: Probability = 1.0
     """Discount factor per step."""
-    epsilon: float = 0.0
+    epsilon: Probability = 0.0
     """Probability of a uniformly random action while learning."""
-
-    def __post_init__(self) -> None:
-        if self.tilings < 1 or self.tiles < 1:
-            raise ValueError("tilings and tiles must be at least 1")
-        if self.alpha <= 0:
-            raise ValueError(f"alpha must be positive, got {self.alpha}")
-        for name in ("trace_decay", "gamma", "epsilon"):
-            if not 0 <= getattr(self, name) <= 1:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
 
 
 class TileCoder:

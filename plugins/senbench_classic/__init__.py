@@ -6,6 +6,7 @@ renderer of the state (``renderers.py``).
 """
 
 import senbench
+from senbench_classic.bars import with_bars
 from senbench_classic.gym_ids import register_gymnasium_ids
 from senbench_classic.mountaincar import MOUNTAINCAR
 from senbench_classic.pendulum import PENDULUM
@@ -13,7 +14,14 @@ from senbench_classic.pendulum import PENDULUM
 register_gymnasium_ids()  # senbench/PixelMountainCar-v0, senbench/PixelPendulum-v0
 
 
+# The same tasks drawn as plain bars of their observation: the pixel learners' control.
+MOUNTAINCAR_BARS = with_bars(MOUNTAINCAR, MOUNTAINCAR.state_low, MOUNTAINCAR.state_high)
+PENDULUM_BARS = with_bars(PENDULUM, (-1.0, -1.0, -8.0), (1.0, 1.0, 8.0))
+
+
 @senbench.hookimpl
 def register_envs(register):
     register(MOUNTAINCAR)
     register(PENDULUM)
+    register(MOUNTAINCAR_BARS)
+    register(PENDULUM_BARS)

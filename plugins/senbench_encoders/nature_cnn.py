@@ -3,19 +3,18 @@ convolutions (8×8 stride 4, 4×4 stride 2, 3×3 stride 1), a hidden layer, the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Annotated
+
+from pydantic import Field
+from pydantic.dataclasses import dataclass
 
 from senbench import Choice, EncoderSpec
 
 
 @dataclass
 class NatureCNNConfig:
-    hidden: int = 512
+    hidden: Annotated[int, Field(ge=1)] = 512
     """Units of the fully connected layer."""
-
-    def __post_init__(self) -> None:
-        if self.hidden < 1:
-            raise ValueError(f"hidden must be positive, got {self.hidden}")
 
 
 def build(input_shape: tuple[int, int, int], outputs: int, config: NatureCNNConfig):

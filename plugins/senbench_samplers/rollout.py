@@ -4,21 +4,19 @@ policy reaches (on MountainCar, the bottom of the valley)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field
+from pydantic.dataclasses import dataclass
 
 from senbench import EnvSpec, PixelSpec, SamplerSpec, make_env
 
 
 @dataclass
 class RolloutConfig:
-    repeat: int = 1
+    repeat: Annotated[int, Field(ge=1)] = 1
     """Steps each random action is held: longer holds reach farther on MountainCar."""
-
-    def __post_init__(self) -> None:
-        if self.repeat < 1:
-            raise ValueError(f"repeat must be at least 1, got {self.repeat}")
 
 
 def sample(env: EnvSpec, count: int, pixels: PixelSpec, seed: int,
@@ -50,4 +48,5 @@ ROLLOUT = SamplerSpec(
     sample=sample,
     config=RolloutConfig,
     description="frames of random-policy episodes, labelled with their states",
+    labels="random-policy rollouts from the env's resets",
 )

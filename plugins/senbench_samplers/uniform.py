@@ -4,9 +4,8 @@ label is the observation of the newest state, so the stack carries the velocity.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
+from pydantic.dataclasses import dataclass
 
 from senbench import EnvSpec, PixelSpec, SamplerSpec
 
@@ -49,4 +48,5 @@ UNIFORM = SamplerSpec(
     sample=sample,
     config=UniformConfig,
     description="states uniform in the state bounds; stacks from the real dynamics",
+    labels="states set by hand, uniform in the bounds",
 )

@@ -19,7 +19,8 @@ from senbench.analysis.summary import METRICS, label, per_cell, with_thresholds
 from senbench.errors import ResultsError
 from senbench.results.store import read_results
 
-LABELS = {"final": "final return", "steps": "frames to threshold", "auc": "AUC"}
+LABELS = {"final": "final return", "steps": "frames to threshold", "auc": "AUC",
+          "charged": "frames to threshold + labelled frames"}
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ class Side:
     """Finished cells of one method (per_cell rows)."""
 
 
-def _finished(results: pd.DataFrame, folder: Path) -> pd.DataFrame:
+def _finished_cells(results: pd.DataFrame, folder: Path) -> pd.DataFrame:
     """Finished cells of one suite, labelled; a folder holding several suites, or several
     versions of one method and seed (``--all``), cannot be compared seed for seed."""
     cells = per_cell(results)
@@ -48,7 +49,7 @@ def _finished(results: pd.DataFrame, folder: Path) -> pd.DataFrame:
 
 def pairs_in_one_folder(folder: Path, a: str, b: str, include_stale: bool = False,
                         thresholds: dict | None = None) -> list[tuple[str, Side, Side]]:
-    cells = _finished(with_thresholds(read_results(folder, include_stale=include_stale),
+    cells = _finished_cells(with_thresholds(read_results(folder, include_stale=include_stale),
                                       thresholds or {}), folder)
     known = sorted(set(cells["label"]))
     for name in (a, b):
@@ -69,8 +70,8 @@ def pairs_across_folders(a: Path, b: Path, include_stale: bool = False,
                          thresholds: dict | None = None) -> list[tuple[str, Side, Side]]:
     left, right = (read_results(f, include_stale=include_stale) for f in (a, b))
     envs = set(left["env"]) | set(right["env"])
-    left = _finished(with_thresholds(left, thresholds or {}, envs), a)
-    right = _finished(with_thresholds(right, thresholds or {}, envs), b)
+    left = _finished_cells(with_thresholds(left, thresholds or {}, envs), a)
+    right = _finished_cells(with_thresholds(right, thresholds or {}, envs), b)
     pairs = []
     for env in sorted(set(left["env"]) & set(right["env"])):
         lg, rg = left[left["env"] == env], right[right["env"] == env]
@@ -98,7 +99,10 @@ def compare(a: Side, b: Side) -> pd.DataFrame:
     """Per metric: IQM [CI] of each side and P(A better than B) [CI]; for frames to
     threshold fewer is better (unreached seeds count as the budget)."""
     rows = []
+    charged = bool(a.cells["labelled_frames"].any() or b.cells["labelled_frames"].any())
     for prefix, (column, higher_is_better) in METRICS.items():
+        if prefix == "charged" and not charged:
+            continue  # the same as frames to threshold when neither used labelled frames
         x, y = (side.cells[column].to_numpy(dtype=float) for side in (a, b))
         sign = 1.0 if higher_is_better else -1.0
         low, high = improvement_ci(sign * x, sign * y)

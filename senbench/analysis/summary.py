@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 
@@ -13,7 +15,10 @@ METRICS = {  # summary prefix → (per-cell column, higher is better)
     "final": ("final_return", True),
     "steps": ("steps_to_threshold", False),
     "auc": ("auc", True),
+    "charged": ("charged_frames", False),
 }
+"""``charged``: frames to threshold plus the labelled frames the method's encoder was
+trained on before its first online frame (0 for state and pixel learners)."""
 
 
 def parse_thresholds(specs: list[str]) -> dict[str | None, float]:
@@ -72,7 +77,25 @@ def per_cell(results: pd.DataFrame) -> pd.DataFrame:
     cells["reached"] = cells["steps_to_threshold"].notna()
     ok = cells["status"] == "ok"
     cells.loc[ok & ~cells["reached"], "steps_to_threshold"] = cells["budget"].astype(float)
+    rows = results[results["kind"] == "cell"]
+    configs = dict(zip(zip(rows["suite"], rows["cell_id"], strict=True),
+                       rows["config"] if "config" in rows else [None] * len(rows),
+                       strict=True))
+    labels = [cell_labels(configs.get(key)) for key in zip(cells["suite"], cells["cell_id"],
+                                                       strict=True)]
+    for column in ("labelled_frames", "labelled_by", "reference"):
+        cells[column] = [entry[column] for entry in labels]
+    cells["charged_frames"] = cells["steps_to_threshold"] + cells["labelled_frames"]
     return cells
+
+
+def cell_labels(config: str | None) -> dict:
+    """A cell's labelled frames (and how they were obtained) and its published reference,
+    from the config its result file records."""
+    parsed = json.loads(config) if isinstance(config, str) and config else {}
+    labelled = parsed.get("labelled", {})
+    return {"labelled_frames": int(labelled.get("frames", 0)),
+            "labelled_by": labelled.get("by", ""), "reference": parsed.get("reference")}
 
 
 def summarize(results: pd.DataFrame) -> pd.DataFrame:
@@ -91,6 +114,9 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
             "reached": int(ok["reached"].sum()),
             "initial_mean": _mean(ok["initial_return"]),
             "initial_std": _std(ok["initial_return"]),
+            "labelled_frames": int(group["labelled_frames"].max()),
+            "labelled_by": group["labelled_by"].iloc[0],
+            **_control(ok, group["reference"].iloc[0]),
         }
         for prefix, (column, _) in METRICS.items():
             values = ok[column].to_numpy(dtype=float)
@@ -100,6 +126,26 @@ def summarize(results: pd.DataFrame) -> pd.DataFrame:
                         f"{prefix}_mean": _mean(ok[column]), f"{prefix}_std": _std(ok[column])})
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _control(ok: pd.DataFrame, reference: dict | None) -> dict:
+    """A positive control's verdict, one-sided: it fails when the 95% interval of our
+    seeds' final-return IQM lies wholly below the published value (the code path falls
+    short of it by more than the seed spread), and passes otherwise — a learner that beats
+    its reference has shown that it works."""
+    if not reference:
+        return {"reference": np.nan, "reference_spread": np.nan, "reference_source": "",
+                "control": ""}
+    finals = ok["final_return"].to_numpy(dtype=float)
+    value = float(reference["value"])
+    if not len(finals):
+        verdict = "no finished seed"
+    else:
+        high = stratified_ci([finals])[1]
+        high = finals.max() if np.isnan(high) else high  # one seed: no interval
+        verdict = "pass" if value <= high else "fail"
+    return {"reference": value, "reference_spread": float(reference.get("spread", 0.0)),
+            "reference_source": reference.get("source", ""), "control": verdict}
 
 
 def summary_table(summary: pd.DataFrame) -> pd.DataFrame:
@@ -147,3 +193,47 @@ def _at(curve: pd.DataFrame, frame: int) -> float:
     return float(curve["return"].to_numpy()[np.searchsorted(steps, frame, side="right") - 1])
 
 
+
+
+def actions_at(results: pd.DataFrame, frames: list[int] | None = None) -> pd.DataFrame:
+    """Per env × method × variant and frame (default: each cell's last evaluation), what the
+    policy did: each finished seed's evaluation action stats at that frame (its last
+    evaluation at or before it), averaged over those seeds — for discrete actions the share
+    of each action, for continuous ones each dimension's mean and spread. A cell whose
+    results predate action recording has none (``seeds`` counts the seeds that had them)."""
+    ok_cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
+    keep = set(zip(ok_cells["suite"], ok_cells["cell_id"], strict=True))
+    evals = results[results["kind"] == "eval"].sort_values("step")
+    keys = ["suite", "env", "method", "variant"]
+    columns = ["action_share", "action_mean", "action_std"]
+    rows = []
+    for key, group in evals.groupby(keys, sort=True):
+        curves = [curve for (suite, cell_id), curve in group.groupby(["suite", "cell_id"])
+                  if (suite, cell_id) in keep]
+        for frame in frames or [None]:
+            picked = [_row_at(curve, frame) for curve in curves]
+            picked = [row for row in picked if row is not None]
+            row = dict(zip(keys, key, strict=True), frame=frame, seeds=len(picked))
+            for column in columns:
+                vectors = [np.asarray(r[column], dtype=float) for r in picked
+                           if r[column] is not None]
+                same = vectors and len({len(v) for v in vectors}) == 1
+                row[column] = np.mean(vectors, axis=0).tolist() if same else None
+            rows.append(row)
+    return pd.DataFrame(rows, columns=[*keys, "frame", "seeds", *columns])
+
+
+def _row_at(curve: pd.DataFrame, frame: int | None) -> pd.Series | None:
+    """A curve's evaluation row at ``frame`` (its last at or before it; None: the last),
+    or None where it has none or the row recorded no actions."""
+    steps = curve["step"].to_numpy()
+    if not len(steps) or (frame is not None and (frame < steps[0] or frame > steps[-1])):
+        return None
+    index = len(steps) - 1 if frame is None else np.searchsorted(steps, frame, "right") - 1
+    row = curve.iloc[index]
+    recorded = any(_present(row[c]) for c in ("action_share", "action_mean"))
+    return row if recorded else None
+
+
+def _present(value) -> bool:
+    return value is not None and not (isinstance(value, float) and np.isnan(value))

@@ -144,17 +144,22 @@ def report(
         min=0, help="Also the mean evaluation return at this frame, over seeds (repeat for "
                     "several; a seed's last evaluation at or before it).")] = None,
     export: Table = None,
+    actions: Annotated[bool, typer.Option(
+        "--actions", help="Also what each method's evaluated policy did: the share of each "
+                          "discrete action, or each action's mean ± std, at its last "
+                          "evaluation and at each --at frame.")] = False,
 ) -> None:
     """Final return, frames to threshold and AUC per env and method, over seeds."""
     from senbench.analysis.summary import (
+        actions_at,
         parse_thresholds,
         returns_at,
         summarize,
         summary_table,
         with_thresholds,
     )
-    from senbench.cli.views import show_report, show_returns_at
-    from senbench.results.outputs import check_table_path, write_table
+    from senbench.cli.views import show_actions, show_report, show_returns_at
+    from senbench.results.outputs import check_table_path, write_export
     from senbench.results.store import read_results
 
     thresholds = parse_thresholds(threshold or [])
@@ -164,10 +169,12 @@ def report(
     summary = summarize(results)
     show_report(summary, out)
     if export is not None:
-        write_table(summary_table(summary), export)
+        write_export(summary_table(summary), export)
         out.print(f"summary written to {escape(str(export))}")
     if at:
         show_returns_at(returns_at(results, sorted(set(at))), out)
+    if actions:
+        show_actions(actions_at(results, [None, *sorted(set(at or []))]), out)
     if results.attrs.get("stale"):
         err.print(f"left out {results.attrs['stale']} cells of earlier versions of the suite "
                   "(--all includes them)")
@@ -189,14 +196,14 @@ def compare(
     from senbench.analysis.compare import comparison_table, pairs_for
     from senbench.analysis.summary import parse_thresholds
     from senbench.cli.views import show_comparison
-    from senbench.results.outputs import check_table_path, write_table
+    from senbench.results.outputs import check_table_path, write_export
 
     if export is not None:
         check_table_path(export)
     pairs = pairs_for(a, b, results, all_cells, parse_thresholds(threshold or []))
     show_comparison(pairs, out)
     if export is not None:
-        write_table(comparison_table(pairs), export)
+        write_export(comparison_table(pairs), export)
         out.print(f"comparison written to {escape(str(export))}")
 
 
@@ -299,7 +306,7 @@ def show(
 @user_errors
 def plugins() -> None:
     """Every env, agent, encoder and sampler installed, and which distribution provided it."""
-    from senbench.cli.tables import render_plugins
+    from senbench.cli.tables import show_plugins
     from senbench.plugin.manager import registries
 
-    render_plugins(registries(), out)
+    show_plugins(registries(), out)

@@ -49,7 +49,7 @@ def encoder_train(
     held-out error per dimension."""
     import pandas as pd
 
-    from senbench.cli.tables import render_encoder
+    from senbench.cli.tables import show_encoder
     from senbench.encoders import TRAINING_THREADS, cache_dir, complete, load_or_train
     from senbench.observe.pixels import PixelSpec
     from senbench.plugin.manager import registries
@@ -64,7 +64,7 @@ def encoder_train(
     request = complete(request, regs)
     load_or_train(cache, request, regs, err.print)
     folder = cache_dir(cache, request)
-    render_encoder(pd.read_parquet(folder / "metrics.parquet"),
+    show_encoder(pd.read_parquet(folder / "metrics.parquet"),
                    f"{env}: {arch}, {request.train_size} of {samples} {sampler} samples "
                    f"(d = {100 * fraction:g}%), held-out RMSE on {test_samples}", out)
     out.print(f"encoder {request.id} → {folder}")
@@ -79,6 +79,9 @@ def plot_curves_command(
     all_cells: Annotated[bool, typer.Option(
         "--all", help="Include cells of earlier versions of the suite.")] = False,
     threshold: Threshold = None,
+    charge_labelled: Annotated[bool, typer.Option(
+        "--charge-labelled", help="Start each encoded method's curve at the labelled frames "
+                                  "its encoder was trained on, not at 0.")] = False,
 ) -> None:
     """Evaluation return against frames, mean and 95% CI band over seeds per method (the
     paper's Figs. 4, 5, 8 and 9)."""
@@ -91,7 +94,9 @@ def plot_curves_command(
     results = with_thresholds(read_results(results_dir, include_stale=all_cells),
                               parse_thresholds(threshold or []))
     suite = results["suite"].iloc[0]
-    envs = plot_curves(results, png, f"{suite}: learning curves")
+    envs = plot_curves(results, png, f"{suite}: learning curves"
+                       + (", labelled frames charged" if charge_labelled else ""),
+                       charge_labelled)
     out.print(f"{escape(str(png))}: {', '.join(envs)}")
 
 

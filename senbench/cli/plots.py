@@ -115,11 +115,13 @@ def plot_traces(encoders: list[tuple[dict, pd.DataFrame]], out: Path) -> None:
     save_figure(fig, out, 110)
 
 
-def learning_curves(results: pd.DataFrame) -> dict[str, dict[str, pd.DataFrame]]:
+def learning_curves(results: pd.DataFrame, charge_labelled: bool = False
+                    ) -> dict[str, dict[str, pd.DataFrame]]:
     """env → method label → finished cells' evaluation returns (one row per cell, one
     column per frame), on the evaluation frames every one of those cells has. Labels name
-    the suite when the results hold several."""
-    from senbench.analysis.summary import label
+    the suite when the results hold several. ``charge_labelled``: an encoded method's frames
+    start at the labelled frames its encoder was trained on, not at 0."""
+    from senbench.analysis.summary import cell_labels, label
 
     cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
     evals = results[results["kind"] == "eval"]
@@ -133,14 +135,21 @@ def learning_curves(results: pd.DataFrame) -> dict[str, dict[str, pd.DataFrame]]
                                f"{method} and a seed; plot without --all")
         table = group.pivot(index="cell_id", columns="step", values="return")
         name = (f"{suite}: " if several else "") + label(method, variant)
+        labelled = cell_labels(cells[cells["cell_id"] == table.index[0]]["config"].iloc[0]
+                               if "config" in cells else None)["labelled_frames"]
+        if charge_labelled and labelled:
+            table.columns = table.columns + labelled
+            name += f" (+{labelled:,} labelled)"
         curves.setdefault(env, {})[name] = table.dropna(axis=1)
     return curves
 
 
-def plot_curves(results: pd.DataFrame, out: Path, title: str) -> list[str]:
+def plot_curves(results: pd.DataFrame, out: Path, title: str,
+                charge_labelled: bool = False) -> list[str]:
     """Mean evaluation return against frames with a 95% bootstrap band over seeds, one
     line per method (and variant), one panel per env, the threshold dashed: the paper's
-    Figs. 4, 5, 8 and 9. Returns the envs drawn."""
+    Figs. 4, 5, 8 and 9. ``charge_labelled`` shifts each encoded method right by the
+    labelled frames its encoder consumed. Returns the envs drawn."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -149,7 +158,7 @@ def plot_curves(results: pd.DataFrame, out: Path, title: str) -> list[str]:
 
     from senbench.analysis.stats import mean_ci
 
-    curves = learning_curves(results)
+    curves = learning_curves(results, charge_labelled)
     if not curves:
         raise ResultsError("no finished cell with evaluations to plot; run the suite first")
     cells = results[results["kind"] == "cell"]
@@ -169,7 +178,8 @@ def plot_curves(results: pd.DataFrame, out: Path, title: str) -> list[str]:
             ax.axhline(threshold, color="black", linestyle="--", linewidth=1,
                        label=f"threshold {threshold:g}")
         ax.set_title(env)
-        ax.set_xlabel("frames (environment steps)")
+        ax.set_xlabel("frames (environment steps)" + (
+            "; encoded methods start at their labelled frames" if charge_labelled else ""))
         ax.set_ylabel("evaluation return (mean over seeds, 95% CI band)")
         ax.xaxis.set_major_formatter(FuncFormatter(
             lambda x, _: f"{x / 1e6:g}M" if x >= 1e6 else f"{x / 1e3:g}k" if x else "0"))

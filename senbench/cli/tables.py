@@ -10,7 +10,7 @@ from rich.markup import escape
 from rich.table import Table
 
 
-def render_encoder(metrics: Any, title: str, console: Console) -> None:
+def show_encoder(metrics: Any, title: str, console: Console) -> None:
     """An encoder's ``metrics.parquet``: held-out RMSE per state dimension, then its epochs
     and training time."""
     errors = metrics[metrics["kind"] == "test"]
@@ -26,7 +26,7 @@ def render_encoder(metrics: Any, title: str, console: Console) -> None:
                   f"{errors['wall_s'].iloc[0]:.0f} s")
 
 
-def render_plugins(registries, console: Console) -> None:
+def show_plugins(registries, console: Console) -> None:
     """Every registered env, agent, encoder and sampler with the distribution it came from."""
     table = Table(title="senbench plugins")
     for column in ("kind", "name", "provided by", "description"):

@@ -38,6 +38,8 @@ def show_report(summary: pd.DataFrame, console: Console) -> None:
     several = summary["suite"].nunique() > 1
     for (suite, env), rows in summary.groupby(["suite", "env"], sort=True):
         where = f"{suite} / {env}" if several else env
+        charged = bool(rows["labelled_frames"].any())
+        controls = bool(rows["control"].astype(bool).any())
         table = Table(
             title=f"{where}: evaluation return; threshold {rows['threshold'].iloc[0]:g}, "
             f"budget {rows['budget'].max():,} frames",
@@ -45,13 +47,23 @@ def show_report(summary: pd.DataFrame, console: Console) -> None:
             f"finished seeds. final: mean of the last {FINAL_WINDOW} evaluations. frames to "
             f"threshold: from where the trailing mean of {THRESHOLD_WINDOW} evaluations "
             "stays at or above it; a seed that never gets there counts as the budget "
-            "(seeds reaching it / finished). AUC: mean return over the budget.",
+            "(seeds reaching it / finished). AUC: mean return over the budget."
+            + (" labelled: the labelled frames an encoded method's encoder was trained on "
+               "before its first online frame, and how they were obtained; charged: frames "
+               "to threshold + labelled frames." if charged else "")
+            + (" reference: the published final return of a positive control; it fails when "
+               "the interval of our final return lies wholly below it." if controls else ""),
         )
         table.add_column("method", no_wrap=True)
         table.add_column("at frame 0", justify="right")
         table.add_column("final", justify="right")
         table.add_column("frames to threshold", justify="right")
         table.add_column("AUC", justify="right")
+        if charged:
+            table.add_column("labelled", justify="right")
+            table.add_column("charged", justify="right")
+        if controls:
+            table.add_column("reference", justify="right")
         table.add_column("seeds ok / failed", justify="right")
         for row in rows.itertuples():
             name = escape(label(row.method, row.variant))
@@ -60,10 +72,25 @@ def show_report(summary: pd.DataFrame, console: Console) -> None:
             else:
                 steps = f"not reached (0/{row.seeds_ok})"
             failed = f"[red]{row.seeds_failed}[/]" if row.seeds_failed else "0"
+            extra = []
+            if charged:
+                extra += [f"{row.labelled_frames:,}\n{escape(row.labelled_by)}"
+                          if row.labelled_frames else "0",
+                          _cell(row, "charged", 0) if row.reached else "—"]
+            if controls:
+                extra.append(_reference(row))
             table.add_row(name, _pm(row.initial_mean, row.initial_std),
-                          _cell(row, "final"), steps, _cell(row, "auc"),
+                          _cell(row, "final"), steps, _cell(row, "auc"), *extra,
                           f"{row.seeds_ok} / {failed}")
         console.print(table)
+
+
+def _reference(row) -> str:
+    if not row.control:
+        return ""
+    colour = {"pass": "green", "fail": "red"}.get(row.control, "yellow")
+    return (f"{row.reference:,.1f} ± {row.reference_spread:,.1f}\n"
+            f"[{colour}]{row.control}[/]\n{escape(row.reference_source)}")
 
 
 def show_returns_at(table: pd.DataFrame, console: Console) -> None:
@@ -181,3 +208,29 @@ def trials_table(study: Any, name: str, objective: str, top: int = 5) -> Any:
                       *(f"{t.params[k]:.4g}" if isinstance(t.params[k], float)
                         else str(t.params[k]) for k in best[0].params))
     return table
+
+
+def show_actions(table: pd.DataFrame, console: Console) -> None:
+    """``actions_at``'s table: per method, what its evaluated policy did."""
+    several = table["suite"].nunique() > 1
+    for (suite, env), rows in table.groupby(["suite", "env"], sort=True):
+        where = f"{suite} / {env}" if several else env
+        out = Table(title=f"{where}: actions in evaluation episodes",
+                    caption="mean over finished seeds of each seed's evaluation at that frame "
+                    "(its last at or before it; 'last': its final evaluation): the share of "
+                    "each discrete action, or each action dimension's mean ± std")
+        out.add_column("method", no_wrap=True)
+        out.add_column("frame", justify="right")
+        out.add_column("seeds", justify="right")
+        out.add_column("actions")
+        for row in rows.itertuples():
+            frame = "last" if pd.isna(row.frame) else f"{int(row.frame):,}"
+            if row.action_share is not None:
+                text = "  ".join(f"{i}: {share:.0%}" for i, share in enumerate(row.action_share))
+            elif row.action_mean is not None:
+                text = "  ".join(f"{m:+.2f} ± {s:.2f}" for m, s in zip(
+                    row.action_mean, row.action_std, strict=True))
+            else:
+                text = "not recorded (results from before action recording)"
+            out.add_row(escape(label(row.method, row.variant)), frame, str(row.seeds), text)
+        console.print(out)

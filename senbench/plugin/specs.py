@@ -162,6 +162,10 @@ class SamplerSpec:
     sample: Callable[..., Any]
     config: type
     description: str = ""
+    labels: str = "not stated by the sampler"
+    """How the labelled frames are obtained, as reports charge them beside the online
+    frames: e.g. "states set by hand" (the env is put in chosen states: access an
+    end-to-end learner never has) or "random-policy rollouts"."""
 
 
 @dataclass

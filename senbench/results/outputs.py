@@ -58,7 +58,7 @@ def check_table_path(path: Path) -> None:
                           "the table beside it")
 
 
-def write_table(table, path: Path) -> None:
+def write_export(table, path: Path) -> None:
     """A pandas DataFrame as .csv or .parquet (by the suffix), written whole."""
     check_table_path(path)
     with written_whole(path) as tmp:

@@ -60,6 +60,10 @@ SCHEMA = pa.schema(
         ("ended_at", pa.timestamp("us", tz="UTC")),
         ("cell_wall_s", pa.float64()),
         ("peak_rss_mb", pa.float64()),
+        # evaluation rows: what the policy did (senbench.run.evaluation); null elsewhere
+        ("action_share", pa.list_(pa.float64())),
+        ("action_mean", pa.list_(pa.float64())),
+        ("action_std", pa.list_(pa.float64())),
     ]
 )
 

@@ -3,7 +3,15 @@
 Every ``eval.every`` frames (and at frame 0 and at the budget) the agent's greedy /
 deterministic policy plays ``eval.episodes`` episodes on its own env, never the training
 env. Episode k of every evaluation of a cell starts from seed ``EVAL_SEED + 1000·seed + k``,
-so successive points of a curve are measured from the same start states.
+so successive points of a curve are measured from the same start states. With
+``eval.epsilon`` = ε > 0, each step takes a uniformly random action with probability ε
+(the DQN literature's ε-greedy evaluation), drawn from a generator seeded per episode, so
+the evaluation stays reproducible and the same for every method of a suite.
+
+Each evaluation records what the policy did, so that a curve that stays flat can be told
+apart from a policy stuck on one action: for discrete actions the share of each action over
+all steps of its episodes, for continuous actions the mean and standard deviation of each
+action dimension.
 """
 
 from __future__ import annotations
@@ -20,24 +28,49 @@ PROGRESS_INTERVAL_S = 0.5
 
 
 class Evaluator:
-    def __init__(self, env: gymnasium.Env, episodes: int, seed: int):
+    def __init__(self, env: gymnasium.Env, episodes: int, seed: int, epsilon: float = 0.0):
+        if not 0.0 <= epsilon <= 1.0:
+            raise ValueError(f"eval epsilon must be in [0, 1], got {epsilon}")
         self.env = env
         self.seeds = [EVAL_SEED + 1000 * seed + k for k in range(episodes)]
+        self.epsilon = epsilon
+        self.discrete = isinstance(env.action_space, gymnasium.spaces.Discrete)
 
-    def __call__(self, act: Callable[[np.ndarray], Any]) -> tuple[float, float, float]:
-        """Mean return, its std over episodes, and mean episode length."""
-        returns, lengths = [], []
+    def __call__(self, act: Callable[[np.ndarray], Any]) -> dict[str, Any]:
+        """Mean return, its std over episodes, mean episode length, and the actions' stats
+        (the columns of an evaluation row)."""
+        returns, lengths, actions = [], [], []
+        space = self.env.action_space
         for seed in self.seeds:
             obs, _ = self.env.reset(seed=seed)
+            explore = np.random.default_rng(seed)
+            if self.epsilon:
+                space.seed(seed)
             total, length, done = 0.0, 0, False
             while not done:
-                obs, reward, terminated, truncated, _ = self.env.step(act(obs))
+                if self.epsilon and explore.random() < self.epsilon:
+                    action = space.sample()
+                else:
+                    action = act(obs)
+                actions.append(action)
+                obs, reward, terminated, truncated, _ = self.env.step(action)
                 total += float(reward)
                 length += 1
                 done = terminated or truncated
             returns.append(total)
             lengths.append(length)
-        return float(np.mean(returns)), float(np.std(returns)), float(np.mean(lengths))
+        return {"return": float(np.mean(returns)), "return_std": float(np.std(returns)),
+                "length": float(np.mean(lengths)), **self._action_stats(actions)}
+
+    def _action_stats(self, actions: list[Any]) -> dict[str, list[float] | None]:
+        if self.discrete:
+            counts = np.bincount(np.asarray(actions, dtype=np.int64).ravel(),
+                                 minlength=int(self.env.action_space.n))
+            return {"action_share": (counts / max(counts.sum(), 1)).tolist(),
+                    "action_mean": None, "action_std": None}
+        taken = np.asarray(actions, dtype=np.float64).reshape(len(actions), -1)
+        return {"action_share": None, "action_mean": taken.mean(axis=0).tolist(),
+                "action_std": taken.std(axis=0).tolist()}
 
 
 class CellRecorder:
@@ -48,7 +81,7 @@ class CellRecorder:
         self,
         budget: int,
         every: int,
-        evaluate: Callable[[], tuple[float, float, float]],
+        evaluate: Callable[[], dict[str, Any]],
         on_progress: Callable[[int, float, float | None, int | None], None] | None = None,
     ):
         self.budget = budget
@@ -71,10 +104,10 @@ class CellRecorder:
         due = steps >= self._next_eval or steps >= self.budget
         evaluated = due and self._last_eval_step != steps
         if evaluated:
-            mean, std, length = self.evaluate()
-            self.rows.append({"kind": "eval", "step": steps, "return": mean, "return_std": std,
-                              "length": length, "wall_s": self.elapsed()})
-            self.last_eval = mean
+            result = self.evaluate()
+            self.rows.append({"kind": "eval", "step": steps, **result,
+                              "wall_s": self.elapsed()})
+            self.last_eval = result["return"]
             self._last_eval_step = steps
             self._next_eval = (steps // self.every + 1) * self.every
         now = self.elapsed()

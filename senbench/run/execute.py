@@ -107,7 +107,7 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
         ctx = AgentContext(agent_spec.config(**cell.hyperparams), env_spec, make, cell.seed,
                            cell.threads)
         agent = agent_spec.make(ctx)
-        evaluator = Evaluator(make(), cell.eval_episodes, cell.seed)
+        evaluator = Evaluator(make(), cell.eval_episodes, cell.seed, cell.eval_epsilon)
         report = None if progress is None else (lambda *a: progress(cell.id, *a))
         recorder = CellRecorder(cell.budget, cell.eval_every,
                                 lambda: evaluator(agent.act), report)

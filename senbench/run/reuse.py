@@ -35,7 +35,7 @@ class Reused:
     senbench_version: str | None
 
 
-def _finished(path: Path) -> pa.Table | None:
+def _finished_table(path: Path) -> pa.Table | None:
     """A cell file's table if it holds a finished cell of today's schema whose config has
     the id in its name (so a file of an older senbench, with ids of another scheme, never
     stands in for a cell it did not compute)."""
@@ -77,7 +77,7 @@ def copy_cell(cell: Cell, source: Path, directory: Path, encoder_cache: Path) ->
     """Write ``source``'s rows as ``cell``'s result file (atomically, as a run would), and
     its encoder into ``encoder_cache`` if missing there. None if ``source`` does not hold
     this cell, finished (failed, rewritten or removed since it was found)."""
-    table = _finished(source) if source.stem == cell.id else None
+    table = _finished_table(source) if source.stem == cell.id else None
     if table is None:
         return None
     first = table.slice(0, 1).to_pylist()[0]

@@ -3,8 +3,8 @@
 Every layer below the suite reads a cell's attributes; nothing reads it by string key. A
 cell has two kinds of field:
 
-- **labels** (suite, method, variant, hyperparams source, threshold) name it in reports and
-  never change what it computes;
+- **labels** (suite, method, variant, hyperparams source, threshold, labelled frames,
+  published reference) name it in reports and never change what it computes;
 - **the computation** (env and its options, agent and its resolved hyperparameters,
   observation, encoder spec, pixel spec, seed, budget, evaluation protocol, threads).
 
@@ -55,6 +55,8 @@ class Cell:
     """torch threads: float sums, and so curves, can differ with the count."""
     hyperparams: dict[str, Any] = field(default_factory=dict)
     """The agent's config after defaults: every field of its config class."""
+    eval_epsilon: float = 0.0
+    """Probability of a random action at each evaluation step."""
     env_options: dict[str, Any] = field(default_factory=dict)
     encoder: dict[str, Any] | None = None
     """The resolved encoder entry (architecture and sampler configs completed with their
@@ -68,6 +70,15 @@ class Cell:
     """The variant's ``path → value`` overrides."""
     hyperparams_source: str = ""
     """Where the agent's defaults for this env came from (a table, a paper)."""
+    labelled_frames: int = 0
+    """Labelled frames (frame stack, true state) the cell's encoder was trained on before
+    any online frame: what an encoded method is charged beside its online frames. 0 for the
+    state and pixel learners."""
+    labelled_by: str = ""
+    """How those labels were obtained: the sampler's ``labels`` (e.g. states set by hand)."""
+    reference: dict[str, Any] | None = None
+    """A published final return this cell's method must reproduce on its env (a positive
+    control): ``{"value", "spread", "source"}``."""
 
     def curve(self) -> dict[str, Any]:
         """What determines the cell's curve: the id hashes exactly this."""
@@ -79,9 +90,16 @@ class Cell:
             "hyperparams": self.hyperparams, "encoder": self.encoder,
             "pixels": None if self.pixels is None else dataclasses.asdict(self.pixels),
             "seed": self.seed, "budget": self.budget,
-            "eval": {"every": self.eval_every, "episodes": self.eval_episodes},
-            "threads": self.threads,
+            "eval": self._eval(), "threads": self.threads,
         }
+
+    def _eval(self) -> dict[str, Any]:
+        """The evaluation protocol. An option at its neutral value (ε = 0) is left out, so
+        that adding an option never changes the ids of the cells that do not use it."""
+        protocol: dict[str, Any] = {"every": self.eval_every, "episodes": self.eval_episodes}
+        if self.eval_epsilon:
+            protocol["epsilon"] = self.eval_epsilon
+        return protocol
 
     @property
     def id(self) -> str:
@@ -103,6 +121,9 @@ class Cell:
             "hyperparams": self.hyperparams, "encoder": self.encoder, "pixels": curve["pixels"],
             "variant": self.variant_values, "seed": self.seed, "budget": self.budget,
             "eval": curve["eval"], "threads": self.threads,
+            **({"labelled": {"frames": self.labelled_frames, "by": self.labelled_by}}
+               if self.encoder is not None else {}),
+            **({"reference": self.reference} if self.reference is not None else {}),
         }
 
     @classmethod
@@ -114,12 +135,16 @@ class Cell:
             agent=config["agent"], observation=config["observation"], seed=config["seed"],
             budget=config["budget"], eval_every=config["eval"]["every"],
             eval_episodes=config["eval"]["episodes"],
+            eval_epsilon=config["eval"].get("epsilon", 0.0),
             max_episode_steps=config["env"]["max_episode_steps"], threads=config["threads"],
             hyperparams=config["hyperparams"], env_options=config["env"]["options"],
             encoder=config.get("encoder"),
             pixels=PixelSpec(**config["pixels"]) if config.get("pixels") else None,
             threshold=float(config["env"]["threshold"]),
-            variant_values=config.get("variant") or {}, hyperparams_source=hyperparams_source)
+            variant_values=config.get("variant") or {}, hyperparams_source=hyperparams_source,
+            labelled_frames=config.get("labelled", {}).get("frames", 0),
+            labelled_by=config.get("labelled", {}).get("by", ""),
+            reference=config.get("reference"))
 
     def replace(self, **changes: Any) -> Cell:
         return dataclasses.replace(self, **changes)

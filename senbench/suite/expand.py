@@ -6,10 +6,7 @@ line and key path; nothing runs until there are none.
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
-import reprlib
-import typing
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,11 +14,13 @@ from typing import Any
 import pydantic
 from pydantic import BaseModel
 
+from senbench.encoders import EncoderRequest
 from senbench.errors import SuiteError, unknown_name_message
 from senbench.observe.observations import OBSERVATIONS
 from senbench.observe.pixels import PixelSpec
 from senbench.plugin.registry import Registries
 from senbench.suite.cell import Cell
+from senbench.suite.resolve import fits, resolve_config, resolve_encoder, show
 from senbench.suite.schema import EncoderEntry, MethodEntry, SuiteModel
 from senbench.suite.source import Loc, SuiteSource, read_suite_file
 
@@ -86,13 +85,6 @@ def _join(source: SuiteSource, problems: list[str]) -> str:
     return head + "\n" + "\n".join(f"  {p}" for p in problems)
 
 
-_REPR = reprlib.Repr()  # keyword arguments only from Python 3.12
-_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlist, _REPR.maxdict = 2, 60, 60, 4, 4
-
-
-def _show(value: Any) -> str:
-    """A short repr: a value built from YAML aliases can be recursive, or huge."""
-    return _REPR.repr(value)
 
 
 def _dotted(loc: Loc) -> str:
@@ -109,7 +101,7 @@ def _format_pydantic(exc: pydantic.ValidationError, source: SuiteSource) -> str:
         elif err["type"] == "missing":
             msg = "required key is missing"
         else:
-            msg = f"{err['msg']} (got {_show(err.get('input'))})"
+            msg = f"{err['msg']} (got {show(err.get('input'))})"
         problems.append(f"{source.where(loc)}: {_dotted(loc) or '(top level)'}: {msg}")
     return _join(source, problems)
 
@@ -145,6 +137,15 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
         if method_name not in model.methods:
             known = list(model.methods)
             problem(("variants", method_name), unknown_name_message("method", method_name, known))
+    for method_name, by_env in model.references.items():
+        if method_name not in model.methods:
+            problem(("references", method_name),
+                    unknown_name_message("method", method_name, list(model.methods)))
+            continue
+        for env_name in by_env:
+            if env_name not in model.envs:
+                problem(("references", method_name, env_name),
+                        unknown_name_message("suite env", env_name, list(model.envs)))
     for method_name, ranges in model.tune.items():
         if method_name not in model.methods:
             known = list(model.methods)
@@ -202,22 +203,31 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
         suite=model.name, method=method_name, env=env_name, agent=agent.name,
         observation=method.observation, budget=env_entry.budget or model.budget,
         eval_every=model.eval.every, eval_episodes=model.eval.episodes,
+        eval_epsilon=model.eval.epsilon,
         max_episode_steps=env_entry.max_episode_steps or env_spec.max_episode_steps,
         threads=model.threads, env_options=dict(env_entry.options), pixels=pixels,
         threshold=float(env_spec.threshold if env_entry.threshold is None
                         else env_entry.threshold),
-        hyperparams_source=defaults.source if defaults else "agent defaults")
+        hyperparams_source=defaults.source if defaults else "agent defaults",
+        reference=(reference.model_dump() if (reference := model.references.get(
+            method_name, {}).get(env_name)) else None))
     cells = []
     for variant, overrides in _variants(model.variants.get(method_name, {})):
         hyperparams, encoder, where = _apply_variant(method_name, method, overrides, problem)
         merged = {**(defaults.values if defaults else {}), **hyperparams}
-        resolved = _resolve_config(agent, merged, where, problem)
+        resolved = resolve_config(agent, merged, where, problem)
         if encoder is not None:
-            encoder = _resolve_encoder(encoder, regs, method_name, problem)
+            encoder = resolve_encoder(encoder, regs, method_name, problem)
         if resolved is None or (method.encoder is not None and encoder is None):
             continue
-        cells += [Cell(**common, variant=variant, variant_values=overrides, seed=seed,
-                       hyperparams=resolved, encoder=encoder) for seed in model.seeds]
+        labelled = {}
+        if encoder is not None:
+            labelled = {"labelled_frames": EncoderRequest(
+                env_name, pixels, samples=encoder["samples"],
+                fraction=encoder["fraction"]).train_size,
+                "labelled_by": regs.samplers.get(encoder["sampler"]).labels}
+        cells += [Cell(**common, **labelled, variant=variant, variant_values=overrides,
+                       seed=seed, hyperparams=resolved, encoder=encoder) for seed in model.seeds]
     return cells
 
 
@@ -233,7 +243,7 @@ def _check_envs(model: SuiteModel, regs: Registries, problem) -> dict[str, tuple
             loc = ("envs", env_name, "options", key)
             if key not in spec.options:
                 problem(loc, unknown_name_message(f"{env_name} option", key, list(spec.options)))
-            elif not _fits(value, spec.options[key]):
+            elif not fits(value, spec.options[key]):
                 problem(loc, f"expected {spec.options[key].__name__}, got {value!r}")
         budget = entry.budget or model.budget
         if model.eval.every > budget:
@@ -294,7 +304,7 @@ def _apply_variant(method_name: str, method: MethodEntry, overrides: dict[str, A
             for err in exc.errors():
                 path = f"encoder.{err['loc'][0]}" if err["loc"] else "encoder"
                 problem(("variants", method_name, path),
-                        f"{err['msg']} (got {_show(err.get('input'))})")
+                        f"{err['msg']} (got {show(err.get('input'))})")
             encoder = None
 
     def where(key: str) -> Loc:
@@ -313,67 +323,3 @@ def _variants(axes: dict[str, list[Any]]):
         yield ",".join(f"{p}={v}" for p, v in overrides.items()), overrides
 
 
-def _resolve_config(agent, params: dict[str, Any], where, problem) -> dict[str, Any] | None:
-    return _resolve_dataclass(agent.config, f"{agent.name} hyperparameter", params, where,
-                              problem)
-
-
-def _resolve_encoder(encoder: dict[str, Any], regs: Registries, method_name: str,
-                     problem) -> dict[str, Any] | None:
-    """The encoder entry with its architecture's and sampler's configs checked and
-    completed with their defaults."""
-    resolved = dict(encoder)
-    for key, registry, name in (("config", regs.encoders, encoder["arch"]),
-                                ("sampler_config", regs.samplers, encoder["sampler"])):
-        spec = registry.get(name)
-
-        def where(field: str, key: str = key) -> Loc:
-            return ("methods", method_name, "encoder", key, field)
-
-        values = _resolve_dataclass(spec.config, f"{name} setting", encoder[key], where, problem)
-        if values is None:
-            return None
-        resolved[key] = values
-    return resolved
-
-
-def _resolve_dataclass(config_cls, what: str, params: dict[str, Any], where,
-                       problem) -> dict[str, Any] | None:
-    """A config dataclass from its defaults and ``params``, each value checked strictly
-    against the field's type (no "2000" for an int, no true for a number), then the
-    config's own ``__post_init__`` checks."""
-    hints = typing.get_type_hints(config_cls)
-    fields = [f.name for f in dataclasses.fields(config_cls)]
-    values, ok = {}, True
-    for key, value in params.items():
-        if key not in fields:
-            problem(where(key), unknown_name_message(what, key, fields))
-            ok = False
-            continue
-        try:
-            values[key] = pydantic.TypeAdapter(hints[key]).validate_python(value, strict=True)
-        except pydantic.ValidationError as exc:
-            err = exc.errors()[0]
-            problem(where(key), f"expected {_type_name(hints[key])}: {err['msg']} "
-                    f"(got {_show(value)})")
-            ok = False
-    if not ok:
-        return None
-    try:
-        config = config_cls(**values)
-    except (ValueError, TypeError) as exc:
-        culprit = next((k for k in values if k in str(exc)), None)
-        loc = where(culprit) if culprit else where("")[:-1]
-        problem(loc, str(exc))
-        return None
-    return dataclasses.asdict(config)
-
-
-def _type_name(annotation: Any) -> str:
-    return getattr(annotation, "__name__", None) or str(annotation)
-
-
-def _fits(value: Any, expected: type) -> bool:
-    if expected is float:
-        return isinstance(value, int | float) and not isinstance(value, bool)
-    return isinstance(value, expected)

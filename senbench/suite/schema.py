@@ -82,6 +82,10 @@ class EvalEntry(StrictModel):
     """Frames between evaluations."""
     episodes: Count = 10
     """Deterministic episodes per evaluation."""
+    epsilon: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.0
+    """Probability of a uniformly random action at each evaluation step (ε-greedy
+    evaluation; the DQN literature uses 0.05). The same for every method of the suite, and
+    recorded in each cell's config."""
 
 
 class TuneRange(StrictModel):
@@ -91,6 +95,18 @@ class TuneRange(StrictModel):
     low: Annotated[float, Field(allow_inf_nan=False)] | None = None
     high: Annotated[float, Field(allow_inf_nan=False)] | None = None
     values: Annotated[list[Any], Field(min_length=1)] | None = None
+
+
+class ReferenceEntry(StrictModel):
+    """A published final return that a method must reproduce on an env: a positive
+    control. ``report`` puts it beside the method's own and says whether it passes."""
+
+    value: Annotated[float, Field(allow_inf_nan=False)]
+    """The published mean return."""
+    spread: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 0.0
+    """Its published ± (e.g. the standard deviation over evaluation episodes)."""
+    source: Annotated[str, Field(min_length=1)]
+    """Where the number is published: table, row, version."""
 
 
 class SuiteModel(StrictModel):
@@ -109,6 +125,8 @@ class SuiteModel(StrictModel):
     """Frame size and stack of pixel observations, unless a method sets its own."""
     variants: dict[str, dict[str, Annotated[list[Any], Field(min_length=1)]]] = {}
     """method → {parameter path → values}: one variant per combination of values."""
+    references: dict[str, dict[str, ReferenceEntry]] = {}
+    """method → {env → the published final return it must reproduce} (controls)."""
     tune: dict[str, dict[str, TuneRange]] = {}
     """method → {hyperparameter → narrower range} for ``senbench tune``; no effect on runs."""
 

@@ -1,0 +1,13 @@
+"""The ranges the agents' config fields are declared with. A suite value outside one is
+reported at its own line, with pydantic's message; a plain ``int`` or ``float`` field takes
+any value of its type."""
+
+from typing import Annotated
+
+from pydantic import Field
+
+PositiveInt = Annotated[int, Field(ge=1)]
+NonNegativeInt = Annotated[int, Field(ge=0)]
+PositiveFloat = Annotated[float, Field(gt=0)]
+Probability = Annotated[float, Field(ge=0, le=1)]
+"""A probability, a discount or a trace decay: in [0, 1]."""
