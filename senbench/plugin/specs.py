@@ -106,8 +106,10 @@ class AgentSpec:
     make: Callable[[AgentContext], Agent]
     config: type
     """A dataclass; its fields are the hyperparameters and their defaults. Suites are
-    checked against it before anything runs: unknown keys, wrong types, and whatever its
-    ``__post_init__`` raises (range checks) are validation errors."""
+    checked against it before anything runs: unknown keys, wrong types, ranges a field
+    declares (``Annotated[int, pydantic.Field(ge=1)]`` on a pydantic dataclass, as the
+    built-in agents do) and whatever its ``__post_init__`` raises (checks across fields)
+    are validation errors, each at its own key."""
     actions: frozenset[str]
     observations: frozenset[str]
     defaults: Mapping[str, AgentDefaults] = field(default_factory=dict)

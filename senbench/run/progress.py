@@ -10,10 +10,9 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
-if TYPE_CHECKING:
-    from senbench.run.execute import CellOutcome
+from senbench.run.execute import CellOutcome
 
 
 class Progress(Protocol):

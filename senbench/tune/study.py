@@ -36,6 +36,7 @@ import numpy as np
 from senbench.analysis.summary import per_cell
 from senbench.errors import SuiteError
 from senbench.plugin.specs import Choice, Float, Int, Param  # noqa: F401 - Float, Int re-exported
+from senbench.results.outputs import written_whole
 from senbench.results.store import read_results, remove_stray_temp_files
 from senbench.run.execute import RunInfo
 from senbench.run.processes import run_processes
@@ -349,8 +350,6 @@ def export_best(study: Any, tgt: Target, path: Path, *, name: str, objective: st
     """Write :func:`best_block` to ``path`` (a ``--export`` .yaml file) whole, headed by a
     comment naming the study, the trial and its objective value."""
     import yaml
-
-    from senbench.results.outputs import written_whole
 
     text = yaml.safe_dump(best_block(study, tgt), sort_keys=False)
     best = study.best_trial
