@@ -4,7 +4,7 @@ one torch thread each; then a small grid run with 1 and with 2 workers, side by 
     .venv/bin/python benchmarks/agent_throughput.py          (≈ 6 min on 2 cores)
 
 Each pair runs with its defaults for that env and observation (their sources: the
-README's table of built-in plugins, and every result's ``hyperparams_source``). The
+table of docs/builtin-plugins.md, and every result's ``hyperparams_source``). The
 encoded observation uses an untrained sen-resnet (its speed does not depend on its
 weights). DQN / DDQN are timed from their first update on, acting
 greedily, so the rate is that of their steady state, not of the warm-up: on pixels they

@@ -27,10 +27,19 @@ class OutputError(SenbenchError):
     """A file a command was asked to write cannot be written there."""
 
 
+class EncoderCacheError(SenbenchError):
+    """A cached state encoder's files are damaged (truncated, altered, unloadable)."""
+
+
+class NonFiniteError(SenbenchError):
+    """A cell's observations, actions, rewards or returns became NaN or infinite."""
+
+
 class UnknownNameError(SenbenchError):
-    def __init__(self, kind: str, name: str, known: list[str]):
+    def __init__(self, kind: str, name: str, known: list[str], note: str = ""):
+        """``note``: appended, e.g. that a disabled plugin provides ``name``."""
         self.kind, self.name, self.known = kind, name, sorted(known)
-        super().__init__(unknown_name_message(kind, name, self.known))
+        super().__init__(unknown_name_message(kind, name, self.known) + note)
 
 
 def unknown_name_message(kind: str, name: str, known: list[str]) -> str:

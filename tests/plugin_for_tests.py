@@ -106,6 +106,38 @@ class SlowAgent:
                 self.env.reset()
 
 
+@dataclass
+class NanConfig:
+    what: str = "return"
+    """return: a training episode's return is NaN; action: the policy acts NaN."""
+    after: int = 300
+    """Frames before it goes wrong."""
+
+
+class NanAgent:
+    """Goes NaN at frame ``after``, as a diverged learner would."""
+
+    def __init__(self, ctx):
+        import numpy as np
+
+        space = ctx.make_env().action_space
+        self.discrete = not hasattr(space, "shape") or not space.shape
+        self.zero = 0 if self.discrete else np.zeros(space.shape, dtype=space.dtype)
+        self.what, self.after = ctx.config.what, ctx.config.after
+        self.broken = False
+
+    def act(self, observation):
+        return self.zero * float("nan") if self.broken and not self.discrete else self.zero
+
+    def learn(self, budget, recorder):
+        steps = 0
+        while recorder.step(steps):
+            steps += 1
+            if steps == self.after and self.what == "return":
+                recorder.episode(steps, float("nan"), steps)
+            self.broken = self.broken or (steps >= self.after and self.what == "action")
+
+
 @senbench.hookimpl
 def register_agents(register):
     kinds = frozenset({"discrete"})
@@ -114,4 +146,6 @@ def register_agents(register):
     register(AgentSpec("slow", SlowAgent, SlowConfig, kinds, frozenset({"state"})))
     register(AgentSpec("exit", ExitAgent, CrashConfig, kinds, frozenset({"state"})))
     register(AgentSpec("die-times", DieTimesAgent, DieTimesConfig, kinds,
+                       frozenset({"state"})))
+    register(AgentSpec("nan", NanAgent, NanConfig, frozenset({"discrete", "continuous"}),
                        frozenset({"state"})))

@@ -67,6 +67,7 @@ def test_ppo_stops_exactly_at_the_budget_and_reports_episodes():
     assert len(log.episodes) == 2 * (1024 // 2 // 200)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("agent", ["ppo", "dqn"])
 def test_sb3_agents_leave_no_log_folder_behind(agent, tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # SB3's default log folder

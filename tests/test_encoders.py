@@ -1,6 +1,6 @@
+import hashlib
 import json
 import os
-import pickle
 
 import numpy as np
 import pytest
@@ -17,6 +17,7 @@ from senbench.encoders import (
     load_or_train,
     train,
 )
+from senbench.errors import EncoderCacheError
 from senbench.observe.observations import make_env
 from senbench.observe.pixels import PixelSpec
 from senbench.plugin.manager import registries
@@ -107,6 +108,7 @@ def test_encoder_ids_name_the_training_threads_only_when_not_the_default():
     assert other.as_dict()["training"]["threads"] == 1
 
 
+@pytest.mark.slow
 def test_checkpoints_load_with_weights_only_and_refuse_code(tmp_path):
     torch.set_num_threads(1)
     load_or_train(tmp_path, request(), registries())
@@ -119,8 +121,52 @@ def test_checkpoints_load_with_weights_only_and_refuse_code(tmp_path):
             return (print, ("this would run code",))
 
     torch.save({"model": Payload(), "mean": saved["mean"], "std": saved["std"]}, model)
-    with pytest.raises(pickle.UnpicklingError):
+    with pytest.raises(EncoderCacheError, match="its SHA-256 is"):  # changed since written
         load(tmp_path, request(), registries())
+    (model.parent / "model.sha256").unlink()  # as an encoder trained before checksums
+    with pytest.raises(EncoderCacheError, match=r"does not load, .* \(UnpicklingError: Weights"):
+        load(tmp_path, request(), registries())
+
+
+@pytest.mark.slow
+def test_a_damaged_cached_encoder_is_refused_naming_the_folder_to_delete(tmp_path):
+    torch.set_num_threads(1)
+    load_or_train(tmp_path, request(), registries())
+    folder = cache_dir(tmp_path, complete(request(), registries()))
+    model = folder / "model.pt"
+    whole = model.read_bytes()
+    assert (folder / "model.sha256").read_text() == (
+        f"{hashlib.sha256(whole).hexdigest()}  model.pt\n")  # sha256sum -c reads it
+    model.write_bytes(whole[:len(whole) // 2])
+    with pytest.raises(EncoderCacheError) as info:
+        load_or_train(tmp_path, request(), registries())
+    message = str(info.value)
+    assert message.startswith(f"cached encoder {model} cannot be used: its SHA-256 is ")
+    assert "truncated or changed since" in message
+    assert f"delete the folder {folder} to train it anew" in message
+    assert model.read_bytes() == whole[:len(whole) // 2]  # not retrained behind one's back
+    (folder / "model.sha256").unlink()  # as the encoders committed before checksums
+    with pytest.raises(EncoderCacheError, match=r"cannot be used: it does not load, so it is "
+                       r"truncated or damaged \(.*\)\. .*delete the folder"):
+        load_or_train(tmp_path, request(), registries())
+    assert not (folder / "model.sha256").exists()  # nothing rewritten
+
+
+@pytest.mark.slow
+def test_a_cell_whose_cached_encoder_is_damaged_fails_saying_so(write_suite, tmp_path):
+    text = SEN.replace("seeds: 2", "seeds: 1")
+    text = text[:text.index("variants:")]
+    suite = load_suite(write_suite(text), registries())
+    encoders = tmp_path / "results" / "encoders"
+    load_or_train(encoders, suite.cells[0].encoder_request(), registries())
+    model = next(encoders.glob("*/model.pt"))
+    model.write_bytes(model.read_bytes()[:1000])
+    summary = run_suite(suite, tmp_path / "results")
+    [failed] = summary.failed
+    assert f"cached encoder {model} cannot be used: its SHA-256 is" in failed.error
+    assert "Traceback" not in failed.error and "EncoderCacheError(" not in failed.error
+    assert read_results(tmp_path / "results" / "sen", include_stale=True)["status"].eq(
+        "failed").all()
 
 
 @pytest.mark.parametrize("sampler", ["uniform", "rollout"])
@@ -139,6 +185,7 @@ def test_sampled_frames_are_the_renderers_frames_of_the_labelled_state(sampler, 
         assert (frames[:, 0] != frames[:, 1]).any(axis=(1, 2)).mean() > 0.9
 
 
+@pytest.mark.slow
 def test_the_encoded_observation_is_the_encoders_estimate_not_the_state(tmp_path):
     torch.set_num_threads(1)
     encoder = load_or_train(tmp_path, request(), registries())

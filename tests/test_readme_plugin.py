@@ -1,6 +1,6 @@
-"""The README's "Write a plugin" section works as written: its package, installed as pip
-would leave it (a dist-info with an entry point, no pip run), shows up in
-``senbench plugins`` and runs its suite next to the built-in env and agent."""
+"""The plugin page of the docs (docs/plugins.md, "Writing a plugin") works as written: its
+package, installed as pip would leave it (a dist-info with an entry point, no pip run),
+shows up in ``senbench plugins`` and runs its suite next to the built-in env and agent."""
 
 import os
 import re
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-DOC = Path(__file__).parent.parent / "README.md"
+DOC = Path(__file__).parent.parent / "docs" / "plugins.md"
 BLOCK = re.compile(r"^File: `([^`]+)`\n+```(\w+)\n(.*?)^```$", re.MULTILINE | re.DOTALL)
 PACKAGE = "senbench-acrobot/senbench_acrobot/__init__.py"
 
@@ -26,7 +26,7 @@ def test_the_doc_has_the_three_files_in_order():
     assert list(files) == ["senbench-acrobot/pyproject.toml", PACKAGE, "suite.yaml"]
     assert [lang for lang, _ in files.values()] == ["toml", "python", "yaml"]
     text = DOC.read_text()
-    assert "## Write a plugin" in text
+    assert "# Writing a plugin" in text
     for command in ("pip install -e senbench-acrobot", "senbench plugins",
                     "senbench run suite.yaml", "senbench report results/acrobot-demo"):
         assert command in text

@@ -140,6 +140,7 @@ def test_its_own_folder_named_first_hides_nothing(write_suite, tmp_path):
     assert summary.skipped == 2 and summary.reused == 1 and summary.ok == 1
 
 
+@pytest.mark.slow
 def test_a_copied_cells_encoder_comes_into_this_results_root(write_suite, tmp_path):
     text = f"name: main\nenvs:\n  mountaincar: {{}}\nmethods:\n{SEN_SARSA}seeds: 1\n" \
         "budget: 600\neval: {every: 300, episodes: 1}\n"

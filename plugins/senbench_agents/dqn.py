@@ -22,7 +22,12 @@ from pydantic.dataclasses import dataclass
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
 from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, Probability
-from senbench_agents.sb3 import is_frame_stack, learn_with_recorder, monitored_vec_env
+from senbench_agents.sb3 import (
+    NATURE_CNN_MIN_FRAME,
+    is_frame_stack,
+    learn_with_recorder,
+    monitored_vec_env,
+)
 
 
 @dataclass
@@ -91,7 +96,7 @@ class DQNAgent:
         cfg: DQNConfig = ctx.config
         venv = monitored_vec_env(ctx, 1)
         pixels = is_frame_stack(venv.observation_space)
-        if pixels and min(venv.observation_space.shape[1:]) < 36:
+        if pixels and min(venv.observation_space.shape[1:]) < NATURE_CNN_MIN_FRAME:
             raise ValueError("dqn and ddqn on pixels use SB3's NatureCNN, which needs frames "
                              "of at least 36x36; set pixels: {height: 36, width: 36} or more")
         # Fused Adam: the same update as SB3's default Adam in one kernel per step; a
@@ -167,7 +172,8 @@ def dqn_spec(name: str, agent: type, description: str) -> AgentSpec:
                                "mountaincar:pixels": ATARI_AT_1M,
                                "mountaincar-bars": ZOO_MOUNTAINCAR,
                                "mountaincar-bars:pixels": ATARI_AT_1M},
-                     description=description, search_space=DQN_SPACE)
+                     description=description, search_space=DQN_SPACE,
+                     min_frame_size=NATURE_CNN_MIN_FRAME)
 
 
 DQN_SPEC = dqn_spec("dqn", DQNAgent, "Stable-Baselines3 DQN: NatureCNN on pixels, MLP on a state")

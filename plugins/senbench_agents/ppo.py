@@ -17,7 +17,12 @@ from pydantic.dataclasses import dataclass
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
 from senbench_agents.ranges import PositiveFloat, PositiveInt, Probability
-from senbench_agents.sb3 import is_frame_stack, learn_with_recorder, monitored_vec_env
+from senbench_agents.sb3 import (
+    NATURE_CNN_MIN_FRAME,
+    is_frame_stack,
+    learn_with_recorder,
+    monitored_vec_env,
+)
 
 
 @dataclass
@@ -126,6 +131,7 @@ PPO_SPEC = AgentSpec(
         ),
     },
     description="Stable-Baselines3 PPO: MLP actor-critic; NatureCNN under it on pixels",
+    min_frame_size=NATURE_CNN_MIN_FRAME,
     # After rl-baselines3-zoo's sample_ppo_params.
     search_space={
         "learning_rate": Float(1e-5, 3e-3, log=True),

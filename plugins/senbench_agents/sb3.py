@@ -5,6 +5,10 @@ from __future__ import annotations
 
 from senbench import AgentContext, Recorder
 
+NATURE_CNN_MIN_FRAME = 36
+"""SB3's NatureCNN (the CnnPolicy's features extractor) takes frames of at least 36x36: its
+convolutions (8x8 stride 4, 4x4 stride 2, 3x3 stride 1) leave nothing of a 35x35 frame."""
+
 
 def is_frame_stack(space) -> bool:
     """A pixel observation: (stack, H, W) uint8, for SB3's CnnPolicy."""

@@ -10,6 +10,9 @@ from pydantic.dataclasses import dataclass
 
 from senbench import Choice, EncoderSpec
 
+MIN_FRAME = 36
+"""Its convolutions (8x8 stride 4, 4x4 stride 2, 3x3 stride 1) leave nothing of 35x35."""
+
 
 @dataclass
 class NatureCNNConfig:
@@ -22,7 +25,7 @@ def build(input_shape: tuple[int, int, int], outputs: int, config: NatureCNNConf
     from torch import nn
 
     stack, height, width = input_shape
-    if min(height, width) < 36:
+    if min(height, width) < MIN_FRAME:
         raise ValueError(f"nature-cnn needs frames of at least 36x36, got {height}x{width}")
     convolutions = nn.Sequential(
         nn.Conv2d(stack, 32, 8, 4), nn.ReLU(),
@@ -42,5 +45,6 @@ NATURE_CNN = EncoderSpec(
     config=NatureCNNConfig,
     description="Nature-DQN CNN (3 convolutions, 1 hidden layer) regressing the state",
     traceable=True,
+    min_frame_size=MIN_FRAME,
     search_space={"hidden": Choice((128, 256, 512))},
 )

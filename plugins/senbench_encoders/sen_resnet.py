@@ -33,6 +33,13 @@ class SenResNetConfig:
     cores; 1 keeps the first block at full resolution: 5× slower."""
 
 
+def min_frame_size(config: SenResNetConfig) -> int:
+    """Each block halves the resolution (the first by ``first_stride``), and the last
+    feature map must keep at least 2x2 of where things are: 17 pixels a side at stride 2,
+    9 at stride 1 (found by building every size from 8)."""
+    return 8 * config.first_stride + 1
+
+
 def build(input_shape: tuple[int, int, int], outputs: int, config: SenResNetConfig):
     import torch
     from torch import nn
@@ -63,7 +70,7 @@ def build(input_shape: tuple[int, int, int], outputs: int, config: SenResNetConf
         shape = trunk(torch.zeros(1, stack, height, width)).shape
     trunk.train()
     if min(shape[2:]) < 2:
-        raise ValueError(f"sen-resnet needs frames of at least {8 * config.first_stride + 1}"
+        raise ValueError(f"sen-resnet needs frames of at least {min_frame_size(config)}"
                          f" pixels a side, got {height}x{width}")
     features = int(np.prod(shape))
     return nn.Sequential(
@@ -81,5 +88,6 @@ SEN_RESNET = EncoderSpec(
     config=SenResNetConfig,
     description="SEN-DRL's encoder: 4 residual blocks of two 3x3 convolutions, 2 FC layers",
     traceable=True,
+    min_frame_size=min_frame_size,
     search_space={"hidden": Choice((64, 128, 256, 512)), "batch_norm": Choice((True, False))},
 )

@@ -49,4 +49,5 @@ ROLLOUT = SamplerSpec(
     config=RolloutConfig,
     description="frames of random-policy episodes, labelled with their states",
     labels="random-policy rollouts from the env's resets",
+    needs=frozenset({"observe"}),
 )

@@ -49,4 +49,5 @@ UNIFORM = SamplerSpec(
     config=UniformConfig,
     description="states uniform in the state bounds; stacks from the real dynamics",
     labels="states set by hand, uniform in the bounds",
+    needs=frozenset({"set_state", "render", "observe"}),
 )

@@ -22,10 +22,15 @@ err = Console(stderr=True, soft_wrap=True)
 
 
 def user_errors(command):
-    """A user's mistake prints its message and exits 2; a traceback would be a bug."""
+    """A user's mistake prints its message and exits 2; a traceback would be a bug. A
+    plugin left out (it failed to import, its hook raised, it registers a name taken) is
+    a warning, printed once, when the command first asks for the plugins."""
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
+        from senbench.plugin.manager import report_problems
+
+        report_problems(warn)
         try:
             return command(*args, **kwargs)
         except SenbenchError as exc:
@@ -33,6 +38,10 @@ def user_errors(command):
             raise typer.Exit(exc.exit_code) from None
 
     return wrapper
+
+
+def warn(message: str) -> None:
+    err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False)
 
 
 FIGURE_HELP = "Figure to write: a .png, .pdf or .svg file."

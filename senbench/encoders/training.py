@@ -10,6 +10,7 @@ successful trajectory, as the paper's Figs. 6 and 10.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from collections.abc import Callable
@@ -28,6 +29,17 @@ from senbench.results.atomic import atomic_file
 
 HELD_OUT_SEED = 1_000_003
 TRACE_STEPS = 1000
+CHECKSUM = "model.sha256"
+"""Beside model.pt: its SHA-256, checked before every load (encoders trained before it
+was written have none)."""
+
+
+def sha256_of(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def draw(request: EncoderRequest, regs: Registries, count: int, seed: int):
@@ -143,6 +155,8 @@ def _train(request: EncoderRequest, regs: Registries, out: Path,
     with atomic_file(out / "model.pt", stem="model") as tmp:  # last: its presence means
         torch.save({"model": model.state_dict(), "mean": torch.as_tensor(mean),  # complete
                     "std": torch.as_tensor(std)}, tmp)
+        with atomic_file(out / CHECKSUM) as sums:  # before model.pt is there, in sha256sum's
+            sums.write_text(f"{sha256_of(tmp)}  model.pt\n")  # format: sha256sum -c works
     log("  held-out RMSE: " + ", ".join(
         f"{e['dimension']} {e['rmse']:.4g} ({e['rmse_pct_of_range']:.2f}% of range)"
         for e in errors) + f"; {train_wall:.0f} s")

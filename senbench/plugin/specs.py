@@ -15,6 +15,10 @@ import numpy as np
 
 ActionKind = Literal["discrete", "continuous"]
 
+ENV_CAPABILITIES = ("observe", "set_state", "render")
+"""The optional :class:`EnvSpec` functions a sampler may need (``SamplerSpec.needs``): an
+env can do what it has the function for."""
+
 
 @dataclass(frozen=True)
 class EnvSpec:
@@ -52,6 +56,29 @@ class EnvSpec:
     """A policy on the observation that solves the task, for encoder traces along a
     successful trajectory (the paper's Figs. 6 and 10)."""
 
+    def capabilities(self) -> frozenset[str]:
+        """What the env can do beyond its dynamics: those of ``"observe"``, ``"set_state"``
+        and ``"render"`` whose function it sets. Suites are checked against them before
+        anything runs: an ``encoded`` observation needs ``observe``, a sampler what its
+        ``needs`` names."""
+        return frozenset(name for name in ENV_CAPABILITIES if getattr(self, name) is not None)
+
+    def unbounded_dimensions(self) -> tuple[str, ...]:
+        """The dimensions of the state observation (``make(...).observation_space``, also
+        the bounds an encoded observation is clipped to) with an infinite bound, by their
+        ``observation_labels`` (or index); all of them when the space has no bounds. Builds
+        an env to read them: senbench asks once per env, and only for an agent that
+        declares ``needs_bounded_observations``."""
+        space = self.make(max_episode_steps=1).observation_space
+        low, high = getattr(space, "low", None), getattr(space, "high", None)
+        if low is None or high is None:
+            return ("all (the observation space has no bounds)",)
+        finite = np.isfinite(np.asarray(low, np.float64)) & np.isfinite(
+            np.asarray(high, np.float64))
+        names = (self.observation_labels if len(self.observation_labels) == finite.size
+                 else tuple(str(i) for i in range(finite.size)))
+        return tuple(name for name, ok in zip(names, finite.ravel(), strict=True) if not ok)
+
 
 @dataclass(frozen=True)
 class Float:
@@ -79,6 +106,15 @@ class Choice:
 
 
 Param = Float | Int | Choice
+
+
+def _check_min_frame_size(kind: str, name: str, size: Any, function_allowed: bool) -> None:
+    if size is None or (function_allowed and callable(size)):
+        return
+    if not isinstance(size, int) or isinstance(size, bool) or size < 1:
+        also = ", a function of the config" if function_allowed else ""
+        raise ValueError(f"{kind} '{name}': min_frame_size must be a positive int{also} or "
+                         f"None, got {size!r}")
 
 
 def _check_search_space(kind: str, name: str, config: type,
@@ -119,9 +155,18 @@ class AgentSpec:
     search_space: Mapping[str, Param] = field(default_factory=dict)
     """What ``senbench tune`` searches: config field → its range. A suite fixes a
     parameter by setting it in the method's ``hyperparams``."""
+    min_frame_size: int | None = None
+    """The smallest frame height and width the agent learns on with the ``pixels``
+    observation (what its network takes: 36 for Stable-Baselines3's NatureCNN); a suite with
+    smaller frames is a validation error at its ``pixels``. None: any size a suite allows."""
+    needs_bounded_observations: bool = False
+    """The agent reads the observation space's bounds (tile coding scales each dimension
+    by them), so on ``state`` and ``encoded`` it needs every bound finite: an env whose
+    state observation has an infinite one is a validation error. False: any bounds."""
 
     def __post_init__(self) -> None:
         _check_search_space("agent", self.name, self.config, self.search_space)
+        _check_min_frame_size("agent", self.name, self.min_frame_size, False)
         for key in self.defaults:
             env, _, observation = key.partition(":")
             if not env or (observation and observation not in self.observations):
@@ -149,9 +194,21 @@ class EncoderSpec:
     search_space: Mapping[str, Param] = field(default_factory=dict)
     """What ``senbench tune`` searches of the architecture's config, as ``encoder.<field>``
     (each distinct value trains its own encoder)."""
+    min_frame_size: int | Callable[[Any], int] | None = None
+    """The smallest frame height and width ``build`` takes: a number, or a function of the
+    resolved config (an instance of ``config``) returning one, when it depends on the
+    config (a stride, say). A suite with smaller frames is a validation error at its
+    ``pixels``. None: any size a suite allows (``build`` may still refuse one)."""
 
     def __post_init__(self) -> None:
         _check_search_space("encoder", self.name, self.config, self.search_space)
+        _check_min_frame_size("encoder", self.name, self.min_frame_size, True)
+
+    def min_frame_size_for(self, config: Any) -> int | None:
+        """``min_frame_size`` for a config (an instance of ``config``)."""
+        if callable(self.min_frame_size):
+            return self.min_frame_size(config)
+        return self.min_frame_size
 
 
 @dataclass(frozen=True)
@@ -168,6 +225,18 @@ class SamplerSpec:
     """How the labelled frames are obtained, as reports charge them beside the online
     frames: e.g. "states set by hand" (the env is put in chosen states: access an
     end-to-end learner never has) or "random-policy rollouts"."""
+    needs: frozenset[str] = frozenset()
+    """What the sampler needs of an env beyond its dynamics, of ``"set_state"`` (to put it
+    in chosen states), ``"render"`` (to draw them with the env plugin's renderer, so also
+    ``pixels.renderer: auto``) and ``"observe"`` (every sampler labels its frames with
+    ``observe``, which an encoded observation needs anyway). Suites are checked against it
+    before anything runs. Empty: only the env's resets and steps."""
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.needs) - set(ENV_CAPABILITIES))
+        if unknown:
+            raise ValueError(f"sampler '{self.name}': needs names {unknown}; an env can offer "
+                             f"{', '.join(ENV_CAPABILITIES)}")
 
 
 @dataclass

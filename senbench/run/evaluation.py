@@ -12,16 +12,24 @@ Each evaluation records what the policy did, so that a curve that stays flat can
 apart from a policy stuck on one action: for discrete actions the share of each action over
 all steps of its episodes, for continuous actions the mean and standard deviation of each
 action dimension.
+
+No NaN passes silently: an evaluation observation, continuous action or reward, an
+evaluation return or a training episode's return that is NaN or infinite fails the cell
+with a NonFiniteError naming what and where (one ``isfinite`` per evaluation step and per
+episode return; nothing is added to an agent's training steps).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import Any
 
 import gymnasium
 import numpy as np
+
+from senbench.errors import NonFiniteError
 
 EVAL_SEED = 1_000_003
 PROGRESS_INTERVAL_S = 0.5
@@ -41,20 +49,25 @@ class Evaluator:
         (the columns of an evaluation row)."""
         returns, lengths, actions = [], [], []
         space = self.env.action_space
-        for seed in self.seeds:
+        for episode, seed in enumerate(self.seeds, 1):
             obs, _ = self.env.reset(seed=seed)
             explore = np.random.default_rng(seed)
             if self.epsilon:
                 space.seed(seed)
             total, length, done = 0.0, 0, False
             while not done:
+                _check(obs, "the observation", length, episode, OBSERVATION_CAUSE)
                 if self.epsilon and explore.random() < self.epsilon:
                     action = space.sample()
                 else:
                     action = act(obs)
+                if not self.discrete:
+                    _check(action, "the agent's action", length, episode, ACTION_CAUSE)
                 actions.append(action)
                 obs, reward, terminated, truncated, _ = self.env.step(action)
                 total += float(reward)
+                if not math.isfinite(total):
+                    _check(reward, "the reward", length, episode, REWARD_CAUSE)
                 length += 1
                 done = terminated or truncated
             returns.append(total)
@@ -71,6 +84,24 @@ class Evaluator:
         taken = np.asarray(actions, dtype=np.float64).reshape(len(actions), -1)
         return {"action_share": None, "action_mean": taken.mean(axis=0).tolist(),
                 "action_std": taken.std(axis=0).tolist()}
+
+
+OBSERVATION_CAUSE = ("the agent's observations contain NaN or infinity — is the env's "
+                     "observation space unbounded, or an option of the env out of range?")
+ACTION_CAUSE = ("the agent's policy outputs NaN or infinity — did its training diverge "
+                "(a learning rate too high, or unbounded observations or rewards)?")
+REWARD_CAUSE = ("the env's reward is NaN or infinite — is the env's observation space "
+                "unbounded, or an option of the env out of range?")
+
+
+def _check(value: Any, what: str, step: int, episode: int, cause: str) -> None:
+    """Raise if ``value`` (a number or an array) holds a NaN or an infinity."""
+    array = np.asarray(value)
+    if array.dtype.kind not in "fc" or np.isfinite(array).all():
+        return
+    bad = "nan" if np.isnan(array).any() else "infinite"
+    raise NonFiniteError(f"{what} is {bad} at step {step} of evaluation episode {episode}: "
+                         f"{cause}")
 
 
 class CellRecorder:
@@ -104,7 +135,13 @@ class CellRecorder:
         due = steps >= self._next_eval or steps >= self.budget
         evaluated = due and self._last_eval_step != steps
         if evaluated:
-            result = self.evaluate()
+            try:
+                result = self.evaluate()
+            except NonFiniteError as exc:
+                raise NonFiniteError(f"evaluation at frame {steps:,}: {exc}") from None
+            if not math.isfinite(result["return"]):
+                raise NonFiniteError(f"evaluation return is {result['return']} at frame "
+                                     f"{steps:,}: {REWARD_CAUSE}")
             self.rows.append({"kind": "eval", "step": steps, **result,
                               "wall_s": self.elapsed()})
             self.last_eval = result["return"]
@@ -121,5 +158,11 @@ class CellRecorder:
         return steps < self.budget
 
     def episode(self, steps: int, episode_return: float, length: int) -> None:
-        self.rows.append({"kind": "episode", "step": steps, "return": float(episode_return),
+        episode_return = float(episode_return)
+        if not math.isfinite(episode_return):
+            raise NonFiniteError(
+                f"episode return is {episode_return} at frame {steps:,}: the env's rewards, "
+                "or the agent's sum of them, are NaN or infinite — are the env's observations "
+                "or rewards unbounded, or did the agent's learning diverge?")
+        self.rows.append({"kind": "episode", "step": steps, "return": episode_return,
                           "return_std": None, "length": float(length), "wall_s": self.elapsed()})

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from senbench.encoders import load_or_train
+from senbench.errors import SenbenchError
 from senbench.observe.observations import make_env
 from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
@@ -119,7 +120,8 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
         raise  # an interrupted cell writes nothing
     except BaseException as exc:  # a cell's failure, even sys.exit, must not stop the grid
         status = "failed"
-        error = "".join(traceback.format_exception(exc)[-12:]).strip()
+        error = (f"{type(exc).__name__}: {exc}" if isinstance(exc, SenbenchError)  # says why
+                 else "".join(traceback.format_exception(exc)[-12:]).strip())
     ended = datetime.now(UTC)
     wall = (ended - started).total_seconds()
     rows = list(recorder.rows) if recorder else []

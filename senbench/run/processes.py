@@ -15,7 +15,6 @@ import sys
 import threading
 import time
 from contextlib import contextmanager
-from importlib.metadata import entry_points
 from multiprocessing.connection import wait as connection_wait
 from pathlib import Path
 from typing import Any
@@ -60,7 +59,7 @@ def _context() -> Any:
         return mp.get_context("spawn")
     context = mp.get_context("forkserver")
     modules = ["senbench.run.execute", "torch"]
-    modules += sorted({ep.value.split(":")[0] for ep in entry_points(group=plugins.GROUP)})
+    modules += plugins.entry_point_modules()  # not a broken one: it would stop the server
     context.set_forkserver_preload(modules)
     return context
 

@@ -181,9 +181,10 @@ def prepare_encoders(todo: list[Cell], directory: Path, info: RunInfo,
             load_or_train(info.encoder_cache, cells[0].encoder_request(), registries(),
                           progress.log)
         except Exception as exc:
+            why = f"{exc}" if isinstance(exc, SenbenchError) else f"{exc!r}"  # says what to do
             for cell in cells:
                 outcome = record_lost_cell(cell, directory, info,
-                                           f"could not train its encoder: {exc!r}")
+                                           f"could not load or train its encoder: {why}")
                 summary.outcomes.append(outcome)
                 progress.finished(outcome)
                 lost.add(cell.id)

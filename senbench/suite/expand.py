@@ -20,7 +20,13 @@ from senbench.observe.observations import OBSERVATIONS
 from senbench.observe.pixels import PixelSpec
 from senbench.plugin.registry import Registries
 from senbench.suite.cell import Cell
-from senbench.suite.resolve import fits, resolve_config, resolve_encoder, show
+from senbench.suite.resolve import (
+    check_capabilities,
+    fits,
+    resolve_config,
+    resolve_encoder,
+    show,
+)
 from senbench.suite.schema import EncoderEntry, MethodEntry, SuiteModel
 from senbench.suite.source import Loc, SuiteSource, read_suite_file
 
@@ -198,6 +204,9 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
     pixels = None  # only where frames are drawn
     if method.observation != "state":
         pixels = PixelSpec(**(method.pixels or model.pixels).model_dump())
+    pixels_at: Loc = (("methods", method_name, "pixels") if method.pixels is not None
+                      else ("pixels",) if "pixels" in model.model_fields_set
+                      else ("methods", method_name, "observation"))
     defaults = agent.defaults_for(env_name, method.observation)
     common = dict(
         suite=model.name, method=method_name, env=env_name, agent=agent.name,
@@ -213,11 +222,23 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
             method_name, {}).get(env_name)) else None))
     cells = []
     for variant, overrides in _variants(model.variants.get(method_name, {})):
-        hyperparams, encoder, where = _apply_variant(method_name, method, overrides, problem)
+        hyperparams, encoder, where, where_encoder = _apply_variant(method_name, method,
+                                                                    overrides, problem)
         merged = {**(defaults.values if defaults else {}), **hyperparams}
         resolved = resolve_config(agent, merged, where, problem)
         if encoder is not None:
-            encoder = resolve_encoder(encoder, regs, method_name, problem)
+            encoder = resolve_encoder(encoder, regs, where_encoder, problem)
+
+        def at(what: str, where_encoder=where_encoder) -> Loc:
+            head, _, key = what.partition(".")
+            if head == "encoder":
+                return where_encoder(key)
+            if head == "pixels":
+                return (*pixels_at, key) if key and pixels_at[-1] == "pixels" else pixels_at
+            return ("methods", method_name, what)
+
+        check_capabilities(agent, env_name, env_spec, method.observation, pixels, encoder,
+                           regs, at, problem)
         if resolved is None or (method.encoder is not None and encoder is None):
             continue
         labelled = {}
@@ -235,7 +256,7 @@ def _check_envs(model: SuiteModel, regs: Registries, problem) -> dict[str, tuple
     envs = {}
     for env_name, entry in model.envs.items():
         if env_name not in regs.envs:
-            problem(("envs", env_name), unknown_name_message("env", env_name, regs.envs.names()))
+            problem(("envs", env_name), regs.envs.unknown_message(env_name))
             continue
         spec = regs.envs.get(env_name)
         envs[env_name] = (spec, entry)
@@ -256,7 +277,7 @@ def _check_method(name: str, method: MethodEntry, regs: Registries, problem):
     """The method's agent spec, or None after reporting why the method cannot run."""
     loc = ("methods", name)
     if method.agent not in regs.agents:
-        problem((*loc, "agent"), unknown_name_message("agent", method.agent, regs.agents.names()))
+        problem((*loc, "agent"), regs.agents.unknown_message(method.agent))
         return None
     agent = regs.agents.get(method.agent)
     if method.observation not in OBSERVATIONS:
@@ -270,19 +291,17 @@ def _check_method(name: str, method: MethodEntry, regs: Registries, problem):
     if (method.observation == "encoded") != (method.encoder is not None):
         problem((*loc, "encoder"), "an encoder is needed exactly when observation is 'encoded'")
         return None
-    if method.encoder is not None:
+    if method.encoder is not None:  # reported here too for a method that gets no cells
         for key, registry in (("arch", regs.encoders), ("sampler", regs.samplers)):
             value = getattr(method.encoder, key)
-            if value not in registry:
-                message = unknown_name_message(registry.kind, value, registry.names())
-                problem((*loc, "encoder", key), message)
-                return None
+            if value not in registry:  # the method's other keys are still checked
+                problem((*loc, "encoder", key), registry.unknown_message(value))
     return agent
 
 
 def _apply_variant(method_name: str, method: MethodEntry, overrides: dict[str, Any], problem):
-    """The method's hyperparams and encoder with a variant's values in, and a function
-    giving where in the file each hyperparameter was set."""
+    """The method's hyperparams and encoder with a variant's values in, and functions
+    giving where in the file each hyperparameter, and each encoder key, was set."""
     hyperparams = dict(method.hyperparams)
     encoder = method.encoder.model_dump() if method.encoder else None
     from_variant: dict[str, Loc] = {}
@@ -310,7 +329,14 @@ def _apply_variant(method_name: str, method: MethodEntry, overrides: dict[str, A
     def where(key: str) -> Loc:
         return from_variant.get(key, ("methods", method_name, "hyperparams", key))
 
-    return hyperparams, encoder, where
+    def where_encoder(key: str, field: str = "") -> Loc:
+        """Where the encoder's ``key`` (its ``field``) is set: a variant's sweep, or the
+        method's encoder block."""
+        if f"encoder.{key}" in overrides:
+            return ("variants", method_name, f"encoder.{key}")
+        return ("methods", method_name, "encoder", key, *((field,) if field else ()))
+
+    return hyperparams, encoder, where, where_encoder
 
 
 def _variants(axes: dict[str, list[Any]]):

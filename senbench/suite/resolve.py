@@ -29,23 +29,31 @@ def resolve_config(agent, params: dict[str, Any], where, problem) -> dict[str, A
                               problem)
 
 
-def resolve_encoder(encoder: dict[str, Any], regs: Registries, method_name: str,
+def resolve_encoder(encoder: dict[str, Any], regs: Registries, where,
                      problem) -> dict[str, Any] | None:
     """The encoder entry with its architecture's and sampler's configs checked and
-    completed with their defaults."""
-    resolved = dict(encoder)
-    for key, registry, name in (("config", regs.encoders, encoder["arch"]),
-                                ("sampler_config", regs.samplers, encoder["sampler"])):
-        spec = registry.get(name)
+    completed with their defaults. ``where(key, field="")`` is where the encoder's ``key``
+    (a field of it, for ``config`` and ``sampler_config``) is set. Every problem of the
+    entry is reported, an unknown arch beside an unknown sampler or sampler setting."""
+    resolved, ok = dict(encoder), True
+    for key, registry, name_key in (("config", regs.encoders, "arch"),
+                                    ("sampler_config", regs.samplers, "sampler")):
+        name = encoder[name_key]
+        if name not in registry:
+            problem(where(name_key), registry.unknown_message(name))
+            ok = False
+            continue
 
-        def where(field: str, key: str = key) -> Loc:
-            return ("methods", method_name, "encoder", key, field)
+        def at(field: str, key: str = key) -> Loc:
+            return where(key, field)
 
-        values = _resolve_dataclass(spec.config, f"{name} setting", encoder[key], where, problem)
+        values = _resolve_dataclass(registry.get(name).config, f"{name} setting", encoder[key],
+                                    at, problem)
         if values is None:
-            return None
-        resolved[key] = values
-    return resolved
+            ok = False
+        else:
+            resolved[key] = values
+    return resolved if ok else None
 
 
 def _resolve_dataclass(config_cls, what: str, params: dict[str, Any], where,
@@ -109,3 +117,93 @@ def fits(value: Any, expected: type) -> bool:
     if expected is float:
         return isinstance(value, int | float) and not isinstance(value, bool)
     return isinstance(value, expected)
+
+
+# Capabilities: what a plugin needs (agent, encoder architecture, sampler) against what the
+# env offers and the frames are, so that a cell that cannot run fails validation, not a run.
+
+_UNBOUNDED: dict[int, tuple[Any, tuple[str, ...] | str]] = {}
+"""id(env spec) → (the spec, kept so the id stays its own; its unbounded dimensions, or why
+they could not be read). Reading them builds an env: once per env per process."""
+
+
+def _unbounded(env_spec: Any) -> tuple[str, ...] | str:
+    cached = _UNBOUNDED.get(id(env_spec))
+    if cached is None or cached[0] is not env_spec:
+        try:
+            found: tuple[str, ...] | str = env_spec.unbounded_dimensions()
+        except Exception as exc:  # noqa: BLE001 - a plugin's make() failing is a problem
+            found = f"{type(exc).__name__}: {exc}"
+        cached = _UNBOUNDED[id(env_spec)] = (env_spec, found)
+    return cached[1]
+
+
+def check_capabilities(agent: Any, env_name: str, env_spec: Any, observation: str,
+                       pixels: Any, encoder: dict[str, Any] | None, regs: Registries,
+                       at, problem) -> None:
+    """Report each thing the agent, the encoder's architecture or its sampler needs that
+    the env or the frames do not give. ``at(what)`` is where ``what`` is set: "agent",
+    "observation", "pixels", "pixels.renderer", "encoder.arch", "encoder.sampler"."""
+    offers = env_spec.capabilities()
+    if observation == "encoded" and "observe" not in offers:
+        problem(at("observation"), f"env '{env_name}' has no observe(): an encoded "
+                "observation needs one (its encoder learns to predict it); use observation: "
+                "pixels or state, restrict the method with 'envs: [...]', or add observe to "
+                "the env plugin")
+    if observation in ("state", "encoded") and agent.needs_bounded_observations:
+        unbounded = _unbounded(env_spec)
+        if isinstance(unbounded, str):
+            problem(at("agent"), f"agent '{agent.name}' needs finite observation bounds, but "
+                    f"env '{env_name}' could not be built to read them: {unbounded}")
+        elif unbounded:
+            problem(at("agent"), f"agent '{agent.name}' needs finite observation bounds (it "
+                    f"scales each dimension by them), but env '{env_name}' has infinite ones "
+                    f"on {', '.join(unbounded)}; restrict the method with 'envs: [...]', use "
+                    "another agent, or give the env plugin an observation space with finite "
+                    "bounds")
+    if observation == "pixels" and agent.min_frame_size:
+        _check_frames(f"agent '{agent.name}'", agent.min_frame_size, pixels, "",
+                      at("pixels"), problem)
+    if encoder is None:
+        return
+    arch = regs.encoders.get(encoder["arch"])
+    try:
+        smallest = arch.min_frame_size_for(arch.config(**encoder["config"]))
+    except Exception as exc:  # noqa: BLE001 - a plugin's function failing is a problem
+        problem(at("encoder.arch"), f"encoder '{arch.name}': min_frame_size failed: {exc!r}")
+        smallest = None
+    if smallest:
+        who = f"encoder '{arch.name}'" + (" with this config" if callable(arch.min_frame_size)
+                                          else "")
+        _check_frames(who, smallest, pixels, ", or use another arch", at("pixels"), problem)
+    _check_sampler(regs, encoder["sampler"], env_name, offers, pixels, at, problem)
+
+
+def _check_frames(who: str, smallest: int, pixels: Any, other_fix: str, loc: Loc,
+                  problem) -> None:
+    height, width = pixels.size
+    if min(height, width) < smallest:
+        problem(loc, f"{who} needs frames of at least {smallest}x{smallest}, got "
+                f"{height}x{width}; set pixels: {{height: {max(height, smallest)}, width: "
+                f"{max(width, smallest)}}} or more{other_fix}")
+
+
+def _check_sampler(regs: Registries, name: str, env_name: str, offers: frozenset[str],
+                   pixels: Any, at, problem) -> None:
+    def usable(sampler: Any) -> bool:  # observe is the encoded observation's to report
+        needs = set(sampler.needs) - {"observe"}
+        return needs <= offers and not ("render" in needs and pixels.renderer == "gymnasium")
+
+    others = [n for n in regs.samplers.names() if n != name and usable(regs.samplers.get(n))]
+    instead = f"sampler: {' or '.join(others)}" if others else "another sampler"
+    sampler = regs.samplers.get(name)
+    missing = sorted(set(sampler.needs) - {"observe"} - offers)
+    if missing:
+        functions = " and no ".join(f"{m}()" for m in missing)
+        problem(at("encoder.sampler"), f"env '{env_name}' has no {functions}: the {name} "
+                f"sampler needs {'them' if len(missing) > 1 else 'it'}; use {instead}, or add "
+                f"{' and '.join(missing)} to the env plugin")
+    elif "render" in sampler.needs and pixels.renderer == "gymnasium":
+        problem(at("pixels.renderer"), f"the {name} sampler draws frames with the env "
+                "plugin's render(), but these observations come from gymnasium's render() "
+                f"(renderer: gymnasium); use renderer: auto, or {instead}")
