@@ -169,30 +169,43 @@ def returns_at(results: pd.DataFrame, frames: list[int]) -> pd.DataFrame:
     """Per env × method × variant and frame: the mean and std over finished seeds of each
     seed's evaluation return at that frame (its last evaluation at or before it; none for a
     frame before its first evaluation or past its last), and how many seeds had one."""
-    ok_cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
-    keep = set(zip(ok_cells["suite"], ok_cells["cell_id"], strict=True))
-    evals = results[results["kind"] == "eval"].sort_values("step")
     rows = []
-    keys = ["suite", "env", "method", "variant"]
-    for key, group in evals.groupby(keys, sort=True):
-        curves = [curve for (suite, cell_id), curve in group.groupby(["suite", "cell_id"])
-                  if (suite, cell_id) in keep]
+    for key, curves in _finished_curves(results):
         for frame in frames:
             values = np.array([_at(curve, frame) for curve in curves], dtype=float)
             values = values[~np.isnan(values)]
-            rows.append(dict(zip(keys, key, strict=True), frame=frame, seeds=len(values),
+            rows.append(dict(zip(KEYS, key, strict=True), frame=frame, seeds=len(values),
                              mean=float(values.mean()) if len(values) else np.nan,
                              std=float(values.std()) if len(values) else np.nan))
-    return pd.DataFrame(rows, columns=[*keys, "frame", "seeds", "mean", "std"])
+    return pd.DataFrame(rows, columns=[*KEYS, "frame", "seeds", "mean", "std"])
+
+
+KEYS = ["suite", "env", "method", "variant"]
+
+
+def _finished_curves(results: pd.DataFrame):
+    """(env × method × variant key, the evaluation curves of its finished cells), each
+    curve sorted by frame."""
+    ok_cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
+    keep = set(zip(ok_cells["suite"], ok_cells["cell_id"], strict=True))
+    evals = results[results["kind"] == "eval"].sort_values("step")
+    for key, group in evals.groupby(KEYS, sort=True):
+        yield key, [curve for (suite, cell_id), curve in group.groupby(["suite", "cell_id"])
+                    if (suite, cell_id) in keep]
+
+
+def _index_at(curve: pd.DataFrame, frame: int | None) -> int | None:
+    """The position of a curve's last evaluation at or before ``frame`` (None: its last),
+    or None for a frame before its first evaluation or past its last."""
+    steps = curve["step"].to_numpy()
+    if not len(steps) or (frame is not None and (frame < steps[0] or frame > steps[-1])):
+        return None
+    return len(steps) - 1 if frame is None else int(np.searchsorted(steps, frame, "right")) - 1
 
 
 def _at(curve: pd.DataFrame, frame: int) -> float:
-    steps = curve["step"].to_numpy()
-    if not len(steps) or frame < steps[0] or frame > steps[-1]:
-        return float("nan")
-    return float(curve["return"].to_numpy()[np.searchsorted(steps, frame, side="right") - 1])
-
-
+    index = _index_at(curve, frame)
+    return float("nan") if index is None else float(curve["return"].to_numpy()[index])
 
 
 def actions_at(results: pd.DataFrame, frames: list[int] | None = None) -> pd.DataFrame:
@@ -201,35 +214,28 @@ def actions_at(results: pd.DataFrame, frames: list[int] | None = None) -> pd.Dat
     evaluation at or before it), averaged over those seeds — for discrete actions the share
     of each action, for continuous ones each dimension's mean and spread. A cell whose
     results predate action recording has none (``seeds`` counts the seeds that had them)."""
-    ok_cells = results[(results["kind"] == "cell") & (results["status"] == "ok")]
-    keep = set(zip(ok_cells["suite"], ok_cells["cell_id"], strict=True))
-    evals = results[results["kind"] == "eval"].sort_values("step")
-    keys = ["suite", "env", "method", "variant"]
     columns = ["action_share", "action_mean", "action_std"]
     rows = []
-    for key, group in evals.groupby(keys, sort=True):
-        curves = [curve for (suite, cell_id), curve in group.groupby(["suite", "cell_id"])
-                  if (suite, cell_id) in keep]
+    for key, curves in _finished_curves(results):
         for frame in frames or [None]:
             picked = [_row_at(curve, frame) for curve in curves]
             picked = [row for row in picked if row is not None]
-            row = dict(zip(keys, key, strict=True), frame=frame, seeds=len(picked))
+            row = dict(zip(KEYS, key, strict=True), frame=frame, seeds=len(picked))
             for column in columns:
                 vectors = [np.asarray(r[column], dtype=float) for r in picked
                            if r[column] is not None]
                 same = vectors and len({len(v) for v in vectors}) == 1
                 row[column] = np.mean(vectors, axis=0).tolist() if same else None
             rows.append(row)
-    return pd.DataFrame(rows, columns=[*keys, "frame", "seeds", *columns])
+    return pd.DataFrame(rows, columns=[*KEYS, "frame", "seeds", *columns])
 
 
 def _row_at(curve: pd.DataFrame, frame: int | None) -> pd.Series | None:
     """A curve's evaluation row at ``frame`` (its last at or before it; None: the last),
     or None where it has none or the row recorded no actions."""
-    steps = curve["step"].to_numpy()
-    if not len(steps) or (frame is not None and (frame < steps[0] or frame > steps[-1])):
+    index = _index_at(curve, frame)
+    if index is None:
         return None
-    index = len(steps) - 1 if frame is None else np.searchsorted(steps, frame, "right") - 1
     row = curve.iloc[index]
     recorded = any(_present(row[c]) for c in ("action_share", "action_mean"))
     return row if recorded else None
