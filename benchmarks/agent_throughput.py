@@ -6,11 +6,13 @@ one torch thread each; then a small grid run with 1 and with 2 workers, side by 
 Each pair runs with its defaults for that env and observation (their sources: the
 table of docs/builtin-plugins.md, and every result's ``hyperparams_source``). The
 encoded observation uses an untrained sen-resnet (its speed does not depend on its
-weights). DQN / DDQN are timed from their first update on, acting
-greedily, so the rate is that of their steady state, not of the warm-up: on pixels they
-update every 4 frames (batch 32); on the state and encoded state the zoo's MountainCar set
-updates 8 times (batch 128) every 16 frames. PPO is timed over whole rollouts, each with
-its update (10 epochs over the rollout in batches of 64).
+weights). The off-policy learners (DQN, DDQN, DrQ, SAC, DrQ's SAC) are timed from their
+first update on, DQN's kind acting mostly greedily, so the rate is that of their steady
+state, not of the warm-up: on pixels DQN and DDQN update every 4 frames (batch 32); on the
+state and encoded state the zoo's MountainCar set updates 8 times (batch 128) every 16
+frames; DrQ, SAC and DrQ's SAC update as their defaults say (docs/builtin-plugins.md).
+PPO is timed over whole rollouts, each with its update (10 epochs over the rollout in
+batches of 64).
 """
 
 from __future__ import annotations
@@ -46,6 +48,11 @@ PAIRS = [  # (agent, observation, env, frames to time): every pair the agents ac
     ("ddqn", "state", "mountaincar", 4_000),
     ("ddqn", "encoded", "mountaincar", 2_000),
     ("ddqn", "pixels", "mountaincar", 3_000),
+    ("drq", "pixels", "mountaincar", 2_000),
+    ("sac", "state", "pendulum", 1_000),
+    ("sac", "encoded", "pendulum", 500),
+    ("sac", "pixels", "pendulum", 300),
+    ("drq-sac", "pixels", "pendulum", 300),
 ]
 
 
@@ -76,8 +83,9 @@ def frames_per_second(agent_name: str, observation: str, env_name: str, frames: 
     encoder = untrained_encoder(env_name) if observation == "encoded" else None
     defaults = agent.defaults_for(env_name, observation)
     config = agent.config(**(defaults.values if defaults else {}))
-    if agent_name in ("dqn", "ddqn"):
+    if hasattr(config, "learning_starts"):  # the off-policy learners: DQN, DrQ, SAC
         config.learning_starts = 0  # time learning, not the warm-up
+    if hasattr(config, "exploration_initial_eps"):
         config.exploration_initial_eps = config.exploration_final_eps  # mostly greedy
 
     def make():

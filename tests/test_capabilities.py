@@ -356,8 +356,12 @@ methods:
 
 
 def test_what_the_built_in_plugins_declare(regs):
-    assert {name: regs.agents.get(name).min_frame_size for name in regs.agents.names()} == {
-        "ddqn": 36, "dqn": 36, "ppo": 36, "sarsa": None}
+    default = {name: regs.agents.get(name).min_frame_size_for(regs.agents.get(name).config())
+               for name in regs.agents.names()}
+    assert default == {"ddqn": 36, "dqn": 36, "drq": 36, "drq-sac": 36, "ppo": 36, "sac": 36,
+                       "sarsa": None}
+    drq = regs.agents.get("drq")
+    assert drq.min_frame_size_for(drq.config(pad=20)) == 40  # a shift: at most half a frame
     assert [n for n in regs.agents.names() if regs.agents.get(n).needs_bounded_observations] == [
         "sarsa"]
     assert regs.samplers.get("uniform").needs == {"observe", "set_state", "render"}

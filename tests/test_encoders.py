@@ -373,3 +373,33 @@ def test_encoder_train_from_the_command_line_names_a_thread_count_other_than_2(t
     assert all(f"encoder {f} →" in default.stdout + one.stdout for f in folders)
     refused = train_cli("--threads", "0")
     assert refused.returncode == 2 and "--threads" in refused.stderr
+
+
+def test_encoder_train_takes_the_configs_a_suite_sets_and_checks_them_the_same_way(tmp_path):
+    from typer.testing import CliRunner
+
+    from senbench.cli.app import app
+
+    def train(*extra):
+        return CliRunner().invoke(app, [
+            "encoder", "train", "--env", "mountaincar", "--samples", "40", "--fraction", "1.0",
+            "--epochs", "1", "--test-samples", "20", "--height", "32", "--width", "32",
+            "--cache", str(tmp_path), *extra])
+
+    refused = train("--arch-config", "widths=[8, 16]", "--arch-config", "hiden=8",
+                    "--sampler-config", "repeat=2", "--arch-config", "first_stride")
+    assert refused.exit_code == 2
+    for part in ("--arch-config widths: List should have at least 4 items",
+                 "unknown sen-resnet setting 'hiden'. Did you mean 'hidden'?",
+                 "--sampler-config repeat: unknown uniform setting 'repeat': uniform has none",
+                 "--arch-config 'first_stride': write KEY=VALUE"):
+        assert part in refused.output.replace("\n", " "), refused.output
+    assert not any(tmp_path.iterdir())  # nothing trained, nothing written
+
+    trained = train("--arch-config", "widths=[4, 4, 8, 8]", "--arch-config", "hidden=8",
+                    "--sampler", "rollout", "--sampler-config", "repeat=2")
+    assert trained.exit_code == 0, trained.output
+    [folder] = [p for p in tmp_path.iterdir() if p.is_dir()]
+    spec = json.loads((folder / "spec.json").read_text())
+    assert spec["arch_config"]["widths"] == [4, 4, 8, 8] and spec["arch_config"]["hidden"] == 8
+    assert spec["sampler_config"]["repeat"] == 2

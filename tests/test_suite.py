@@ -75,7 +75,7 @@ BAD = {
     "unknown agent": (
         GOOD.replace("agent: sarsa", "agent: sarsaa"),
         ["suite.yaml:7", "methods.sarsa-state.agent", "unknown agent 'sarsaa'",
-         "Known agents: ddqn, dqn, ppo, sarsa"],
+         "Known agents: ddqn, dqn, drq, drq-sac, ppo, sac, sarsa"],
     ),
     "unknown env": (
         GOOD.replace("  pendulum: {budget: 4000}", "  cartpole: {}"),

@@ -104,9 +104,9 @@ class DQNAgent:
         policy_kwargs = {"net_arch": list(cfg.net_arch), "optimizer_kwargs": {"fused": True}}
         if pixels:
             policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}
-        from stable_baselines3 import DQN
-
-        algorithm = double_dqn() if self.double else DQN
+        algorithm, extra = self.algorithm(cfg, venv.observation_space.shape[1:])
+        buffer_kwargs = {"handle_timeout_termination": not cfg.optimize_memory_usage,
+                         **extra.pop("replay_buffer_kwargs", {})}
         self.model = algorithm(
             "CnnPolicy" if pixels else "MlpPolicy", venv,
             learning_rate=cfg.learning_rate, buffer_size=cfg.buffer_size,
@@ -117,9 +117,15 @@ class DQNAgent:
             exploration_initial_eps=cfg.exploration_initial_eps,
             exploration_final_eps=cfg.exploration_final_eps, max_grad_norm=cfg.max_grad_norm,
             optimize_memory_usage=cfg.optimize_memory_usage,
-            replay_buffer_kwargs={"handle_timeout_termination": not cfg.optimize_memory_usage},
-            policy_kwargs=policy_kwargs, seed=ctx.seed, device="cpu", verbose=0,
+            replay_buffer_kwargs=buffer_kwargs, policy_kwargs=policy_kwargs, seed=ctx.seed,
+            device="cpu", verbose=0, **extra,
         )
+
+    def algorithm(self, cfg: DQNConfig, frame: tuple[int, ...]) -> tuple[type, dict]:
+        """The SB3 class to build and the keyword arguments it takes beyond DQN's."""
+        from stable_baselines3 import DQN
+
+        return (double_dqn() if self.double else DQN), {}
 
     def act(self, observation: np.ndarray):
         action, _ = self.model.predict(observation, deterministic=True)

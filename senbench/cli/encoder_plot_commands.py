@@ -44,6 +44,13 @@ def encoder_train(
                                                 "(default 2); the weights depend on it, so "
                                                 "another count names another encoder.")]
     = None,
+    arch_config: Annotated[list[str] | None, typer.Option(
+        metavar="KEY=VALUE", help="A setting of the architecture's config, as a suite's "
+        "encoder.config sets it (repeat for several); VALUE is read as YAML: 32, true, "
+        "[16, 32].")] = None,
+    sampler_config: Annotated[list[str] | None, typer.Option(
+        metavar="KEY=VALUE", help="A setting of the sampler's config, as a suite's "
+        "encoder.sampler_config sets it (repeat for several).")] = None,
 ) -> None:
     """Train a state encoder (or load it if this spec was trained before) and print its
     held-out error per dimension."""
@@ -55,9 +62,10 @@ def encoder_train(
     from senbench.plugin.manager import registries
     regs = registries()
     regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
+    configs = checked_configs(regs, arch, sampler, arch_config or [], sampler_config or [])
     request = EncoderRequest(
         env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
-        samples=samples, fraction=fraction, seed=seed,
+        samples=samples, fraction=fraction, seed=seed, **configs,
         training=Training(epochs=epochs, batch_size=batch_size, learning_rate=learning_rate,
                           patience=patience, test_samples=test_samples,
                           threads=threads or TRAINING_THREADS))
@@ -68,6 +76,48 @@ def encoder_train(
                    f"{env}: {arch}, {request.train_size} of {samples} {sampler} samples "
                    f"(d = {100 * fraction:g}%), held-out RMSE on {test_samples}", out)
     out.print(f"encoder {request.id} → {folder}")
+
+
+def checked_configs(regs, arch: str, sampler: str, arch_settings: list[str],
+                    sampler_settings: list[str]) -> dict:
+    """``arch_config`` and ``sampler_config`` from KEY=VALUE settings (VALUE read with YAML's
+    safe loader), checked against the architecture's and the sampler's config classes as a
+    suite's are; every problem reported at once."""
+    import yaml
+
+    from senbench.suite.resolve import resolve_encoder
+
+    problems: list[str] = []
+    parsed = {}
+    for option, settings in (("--arch-config", arch_settings),
+                             ("--sampler-config", sampler_settings)):
+        parsed[option] = {}
+        for setting in settings:
+            key, equals, text = setting.partition("=")
+            if not equals or not key.strip():
+                problems.append(f"{option} {setting!r}: write KEY=VALUE, a field of the "
+                                "config and its value")
+                continue
+            try:
+                parsed[option][key.strip()] = yaml.safe_load(text)
+            except yaml.YAMLError as exc:
+                problems.append(f"{option} {key.strip()}: {text!r} is not a YAML value "
+                                f"({exc.problem if hasattr(exc, 'problem') else exc})")
+    options = {"config": "--arch-config", "sampler_config": "--sampler-config"}
+
+    def where(key: str, field: str = "") -> tuple[str, ...]:
+        return (options.get(key, f"--{key}"), field)
+
+    def problem(loc: tuple[str, ...], message: str) -> None:
+        problems.append(f"{' '.join(part for part in loc if part)}: {message}")
+
+    resolved = resolve_encoder({"arch": arch, "sampler": sampler,
+                                "config": parsed["--arch-config"],
+                                "sampler_config": parsed["--sampler-config"]},
+                               regs, where, problem)
+    if problems or resolved is None:
+        raise SenbenchError("; ".join(problems))
+    return {"arch_config": resolved["config"], "sampler_config": resolved["sampler_config"]}
 
 
 @plot_app.command("curves")

@@ -155,10 +155,12 @@ class AgentSpec:
     search_space: Mapping[str, Param] = field(default_factory=dict)
     """What ``senbench tune`` searches: config field → its range. A suite fixes a
     parameter by setting it in the method's ``hyperparams``."""
-    min_frame_size: int | None = None
+    min_frame_size: int | Callable[[Any], int] | None = None
     """The smallest frame height and width the agent learns on with the ``pixels``
-    observation (what its network takes: 36 for Stable-Baselines3's NatureCNN); a suite with
-    smaller frames is a validation error at its ``pixels``. None: any size a suite allows."""
+    observation (what its network takes: 36 for Stable-Baselines3's NatureCNN): a number,
+    or a function of the resolved config (an instance of ``config``) when a hyperparameter
+    decides it (an augmentation's pad, say). A suite with smaller frames is a validation
+    error at its ``pixels``. None: any size a suite allows."""
     needs_bounded_observations: bool = False
     """The agent reads the observation space's bounds (tile coding scales each dimension
     by them), so on ``state`` and ``encoded`` it needs every bound finite: an env whose
@@ -166,7 +168,7 @@ class AgentSpec:
 
     def __post_init__(self) -> None:
         _check_search_space("agent", self.name, self.config, self.search_space)
-        _check_min_frame_size("agent", self.name, self.min_frame_size, False)
+        _check_min_frame_size("agent", self.name, self.min_frame_size, True)
         for key in self.defaults:
             env, _, observation = key.partition(":")
             if not env or (observation and observation not in self.observations):
@@ -176,6 +178,12 @@ class AgentSpec:
 
     def defaults_for(self, env: str, observation: str) -> AgentDefaults | None:
         return self.defaults.get(f"{env}:{observation}", self.defaults.get(env))
+
+    def min_frame_size_for(self, config: Any) -> int | None:
+        """``min_frame_size`` for a config (an instance of ``config``)."""
+        if callable(self.min_frame_size):
+            return self.min_frame_size(config)
+        return self.min_frame_size
 
 
 @dataclass(frozen=True)

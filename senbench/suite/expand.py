@@ -237,8 +237,8 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
                 return (*pixels_at, key) if key and pixels_at[-1] == "pixels" else pixels_at
             return ("methods", method_name, what)
 
-        check_capabilities(agent, env_name, env_spec, method.observation, pixels, encoder,
-                           regs, at, problem)
+        check_capabilities(agent, env_name, env_spec, method.observation, pixels, resolved,
+                           encoder, regs, at, problem)
         if resolved is None or (method.encoder is not None and encoder is None):
             continue
         labelled = {}

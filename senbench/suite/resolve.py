@@ -68,7 +68,8 @@ def _resolve_dataclass(config_cls, what: str, params: dict[str, Any], where,
     values, ok = {}, True
     for key, value in params.items():
         if key not in fields:
-            problem(where(key), unknown_name_message(what, key, fields))
+            problem(where(key), unknown_name_message(what, key, fields) if fields else
+                    f"unknown {what} '{key}': {what.rsplit(' ', 1)[0]} has none")
             ok = False
             continue
         try:
@@ -139,9 +140,10 @@ def _unbounded(env_spec: Any) -> tuple[str, ...] | str:
 
 
 def check_capabilities(agent: Any, env_name: str, env_spec: Any, observation: str,
-                       pixels: Any, encoder: dict[str, Any] | None, regs: Registries,
-                       at, problem) -> None:
-    """Report each thing the agent, the encoder's architecture or its sampler needs that
+                       pixels: Any, hyperparams: dict[str, Any] | None,
+                       encoder: dict[str, Any] | None, regs: Registries, at, problem) -> None:
+    """Report each thing the agent (with ``hyperparams``, resolved; None where they failed
+    their own checks), the encoder's architecture or its sampler needs that
     the env or the frames do not give. ``at(what)`` is where ``what`` is set: "agent",
     "observation", "pixels", "pixels.renderer", "encoder.arch", "encoder.sampler"."""
     offers = env_spec.capabilities()
@@ -161,9 +163,20 @@ def check_capabilities(agent: Any, env_name: str, env_spec: Any, observation: st
                     f"on {', '.join(unbounded)}; restrict the method with 'envs: [...]', use "
                     "another agent, or give the env plugin an observation space with finite "
                     "bounds")
-    if observation == "pixels" and agent.min_frame_size:
-        _check_frames(f"agent '{agent.name}'", agent.min_frame_size, pixels, "",
-                      at("pixels"), problem)
+    configured = callable(agent.min_frame_size)
+    if observation == "pixels" and agent.min_frame_size and (hyperparams is not None
+                                                             or not configured):
+        try:
+            smallest = (agent.min_frame_size_for(agent.config(**hyperparams)) if configured
+                        else agent.min_frame_size)
+        except Exception as exc:  # noqa: BLE001 - a plugin's function failing is a problem
+            problem(at("agent"), f"agent '{agent.name}': min_frame_size failed: {exc!r}")
+            smallest = None
+        if smallest:
+            _check_frames(f"agent '{agent.name}'" + (" with these hyperparams" if configured
+                                                      else ""), smallest, pixels,
+                          ", or change its hyperparams" if configured else "", at("pixels"),
+                          problem)
     if encoder is None:
         return
     arch = regs.encoders.get(encoder["arch"])
