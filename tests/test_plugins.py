@@ -288,6 +288,10 @@ def test_plugins_disabled_by_name_or_distribution(broken_env, tmp_path):
     listing = senbench_cli(off, "plugins")
     assert listing.returncode == 0 and listing.stderr == ""
     assert "crash" in listing.stdout and "copycat-agent" not in listing.stdout
+    left_out = listing.stdout.split("left out", 1)[1]  # listed, with why, after the rest
+    for plugin in ("broken", "copy"):
+        assert plugin in left_out
+    assert left_out.count("SENBENCH_DISABLE_PLUGINS names it") == 4
 
     (tmp_path / "crash.yaml").write_text(GOOD.replace("agent: sarsa", "agent: crash"))
     off["SENBENCH_DISABLE_PLUGINS"] += ",tests"

@@ -40,3 +40,11 @@ def show_plugins(registries, console: Console) -> None:
             table.add_row(registry.kind, escape(name), escape(str(registry.origin(name))),
                           escape(spec.description))
     console.print(table)
+    if registries.problems:  # disabled on purpose too: what is not there, and why
+        left = Table(title="left out")
+        for column in ("plugin", "provided by", "what", "why"):
+            left.add_column(column)
+        for problem in registries.problems:
+            left.add_row(escape(problem.plugin), escape(str(problem.origin)),
+                         escape(problem.thing or "all of it"), escape(problem.reason))
+        console.print(left)
