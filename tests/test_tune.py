@@ -237,3 +237,59 @@ def test_exporting_a_study_with_no_finished_trial_fails_and_writes_nothing(tmp_p
     assert "no trial finished yet ({'complete': 0, 'pruned': 1" in done.stderr
     assert "nothing to export" in done.stderr
     assert not (tmp_path / "best.yaml").exists()
+
+
+TWO = """\
+name: two
+envs:
+  mountaincar: {}
+  pendulum: {}
+methods:
+  sarsa-state: {agent: sarsa, envs: [mountaincar], hyperparams: {tilings: 8}}
+  sarsa-small: {agent: sarsa, envs: [mountaincar], hyperparams: {tilings: 4, tiles: 4}}
+  ppo-state: {agent: ppo}
+seeds: 1
+budget: 2000
+eval: {every: 1000, episodes: 1}
+"""
+
+
+@pytest.mark.slow
+def test_every_method_is_tuned_with_the_same_budget_and_exported_together(tmp_path):
+    (tmp_path / "s.yaml").write_text(TWO)
+    env = {**os.environ, "COLUMNS": "200"}
+    done = subprocess.run([sys.executable, "-m", "senbench", "tune", str(tmp_path / "s.yaml"),
+                           "--method", "sarsa-state", "--method", "sarsa-small", "--trials",
+                           "2", "--seeds", "2", "--seed", "0", "--results",
+                           str(tmp_path / "results"), "--export", str(tmp_path / "b.yaml")],
+                          capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr
+    budget = done.stdout.split("tuning budget", 1)[1]
+    for name in ("sarsa-state-mountaincar-auc", "sarsa-small-mountaincar-auc"):
+        assert len(optuna.load_study(study_name=name, storage=f"sqlite:///"
+                                     f"{tmp_path / 'results' / 'two' / 'tune.db'}").trials) == 2
+        row = next(line for line in budget.splitlines() if name in line)
+        assert row.count("8,000") == 2  # frames spent = the cap: 2 trials x 2 seeds x 2,000
+    blocks = yaml.safe_load((tmp_path / "b.yaml").read_text())
+    assert set(blocks) == {"sarsa-state", "sarsa-small"}
+    assert blocks["sarsa-small"]["hyperparams"]["tilings"] == 4
+    assert (tmp_path / "b.yaml").read_text().count("# senbench tune: study") == 2
+
+
+def test_what_a_tune_of_several_methods_refuses_before_it_runs(tmp_path):
+    (tmp_path / "s.yaml").write_text(TWO)
+    suite = load_suite(tmp_path / "s.yaml", registries())
+    regs = registries()
+    every = tuning.tune_targets(suite, None, None, regs, named_study=False, export=False)
+    assert [(t.method, t.env) for t in every] == [
+        ("sarsa-state", "mountaincar"), ("sarsa-small", "mountaincar"),
+        ("ppo-state", "mountaincar"), ("ppo-state", "pendulum")]
+    on_pendulum = tuning.tune_targets(suite, None, "pendulum", regs, named_study=False,
+                                      export=True)
+    assert [(t.method, t.env) for t in on_pendulum] == [("ppo-state", "pendulum")]
+    with pytest.raises(tuning.SuiteError, match="--study names one study"):
+        tuning.tune_targets(suite, None, None, regs, named_study=True, export=False)
+    with pytest.raises(tuning.SuiteError, match="ppo-state runs on several envs"):
+        tuning.tune_targets(suite, ["ppo-state"], None, regs, named_study=False, export=True)
+    with pytest.raises(tuning.SuiteError, match="--method sarsa: not a method"):
+        tuning.tune_targets(suite, ["sarsa"], None, regs, named_study=False, export=False)

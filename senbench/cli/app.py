@@ -211,18 +211,21 @@ def compare(
 @user_errors
 def tune(
     suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")],
-    method: Annotated[str, typer.Option(help="The suite's method to tune.")],
-    trials: Annotated[int, typer.Option(min=1, help="Trials the study should hold in all "
+    trials: Annotated[int, typer.Option(min=1, help="Trials each study should hold in all "
                                         "(finished and pruned); a rerun resumes.")],
-    env: Annotated[str | None, typer.Option(help="The env, if the method runs on several.")]
-    = None,
+    method: Annotated[list[str] | None, typer.Option(
+        help="A method of the suite to tune (repeat for several; default: every method, "
+        "each with the same trials, seeds and frames: an equal tuning budget).")] = None,
+    env: Annotated[str | None, typer.Option(help="Only this env (default: every env each "
+                                            "method runs on, one study each).")] = None,
     seeds: Annotated[int, typer.Option(min=1, help="Seeds per trial, run at once.")] = 3,
     objective: Annotated[str, typer.Option(
         help="auc, final or steps-to-threshold (mean over the trial's seeds).")] = "auc",
     storage: Annotated[str | None, typer.Option(
         help="Optuna storage URL (default: sqlite:///RESULTS/<suite>/tune.db).")] = None,
     study: Annotated[str | None, typer.Option(
-        help="Study name (default: <method>-<env>-<objective>).")] = None,
+        help="Study name, with one method on one env (default: <method>-<env>-<objective>)."
+    )] = None,
     sampler: Annotated[str, typer.Option(help="tpe or random.")] = "tpe",
     pruner: Annotated[str, typer.Option(help="median, hyperband or none.")] = "median",
     seed: Annotated[int | None, typer.Option(help="The sampler's seed.")] = None,
@@ -230,23 +233,25 @@ def tune(
                                          "seed, all at once, so that the pruner sees every "
                                          "seed at each evaluation early).")] = 0,
     export: Annotated[Path | None, typer.Option(
-        help="Write the best trial as a suite 'methods:' block to this .yaml file.")] = None,
+        help="Write each method's best trial as a suite 'methods:' block to this .yaml "
+        "file.")] = None,
     results: Annotated[Path, typer.Option(help="Results root.")] = Path("results"),
 ) -> None:
-    """Tune a method's hyperparameters with Optuna: seed-averaged trials, pruning on the
-    seed-mean evaluation curve, a resumable shared study, and the best block exported."""
-    from senbench.cli.views import trials_table
+    """Tune methods' hyperparameters with Optuna: seed-averaged trials, pruning on the
+    seed-mean evaluation curve, a resumable shared study per method and env, each with the
+    same budget, and the best blocks exported."""
+    from senbench.cli.views import budget_table, trials_table
     from senbench.plugin.manager import registries
     from senbench.run.processes import usable_cores
+    from senbench.tune.export import export_best
     from senbench.tune.study import (
         check_objective,
-        export_best,
         make_pruner,
         make_sampler,
         run_study,
         storage_for,
-        target,
         trial_counts,
+        tune_targets,
     )
 
     check_objective(objective)  # before a study is stored
@@ -254,31 +259,42 @@ def tune(
         check_out_file(export, (".yaml", ".yml"), "--export")
     suite = _load(suite_file)
     regs = registries()
-    tgt = target(suite, method, env, regs)
-    name = study or f"{tgt.method}-{tgt.env}-{objective}"
-    chosen_sampler, chosen_pruner = make_sampler(sampler, seed), make_pruner(pruner, tgt)
+    targets = tune_targets(suite, method, env, regs, named_study=study is not None,
+                           export=export is not None)
+    for tgt in targets:  # a bad --sampler or --pruner before any storage is made
+        make_sampler(sampler, seed), make_pruner(pruner, tgt)
     processes = min(workers or seeds, seeds)
     if processes > usable_cores():
         err.print(f"[yellow]warning:[/] each trial runs {processes} seeds at once on "
                   f"{usable_cores()} cores (--workers caps them)")
-    done = run_study(  # the storage is opened (a SQLite file created) only once all is checked
-        tgt, trials=trials, seeds=seeds, objective=objective,
-        storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
-        sampler=chosen_sampler, pruner=chosen_pruner,
-        results_root=results, workers=processes, regs=regs,
-        log=lambda message: err.print(escape(message), highlight=False))
-    table = trials_table(done, name, objective)
-    if table is None:
-        err.print(f"study '{name}': no trial finished yet ({trial_counts(done)})")
-    else:
-        out.print(table)
-    if export is not None:
+    studies = []
+    for tgt in targets:  # one after another, each with the same settings
+        name = study or f"{tgt.method}-{tgt.env}-{objective}"
+        done = run_study(  # the storage is opened only once all is checked
+            tgt, trials=trials, seeds=seeds, objective=objective,
+            storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
+            sampler=make_sampler(sampler, seed), pruner=make_pruner(pruner, tgt),
+            results_root=results, workers=processes, regs=regs,
+            log=lambda message: err.print(escape(message), highlight=False))
+        studies.append((name, done, tgt))
+        table = trials_table(done, name, objective)
         if table is None:
-            err.print(f"study '{name}' has no finished trial yet: nothing to export; run more "
-                      "trials")
+            err.print(f"study '{name}': no trial finished yet ({trial_counts(done)})")
+        else:
+            out.print(table)
+    if len(studies) > 1:
+        out.print(budget_table(studies, seeds))
+    if export is not None:
+        unfinished = [name for name, done, _ in studies if trials_table(done, name, objective)
+                      is None]
+        if unfinished:
+            err.print(f"study {', '.join(unfinished)} has no finished trial yet: nothing "
+                      "to export; run more trials")
             raise typer.Exit(1)
-        export_best(done, tgt, export, name=name, objective=objective, seeds=seeds)
-        out.print(f"best trial written to {escape(str(export))}")
+        export_best([(done, tgt) for _, done, tgt in studies], export, objective=objective,
+                    seeds=seeds)
+        out.print(f"best {'trials' if len(studies) > 1 else 'trial'} written to "
+                  f"{escape(str(export))}")
 
 
 @app.command()

@@ -210,6 +210,30 @@ def trials_table(study: Any, name: str, objective: str, top: int = 5) -> Any:
     return table
 
 
+def budget_table(studies: list[tuple[str, Any, Any]], seeds: int) -> Any:
+    """What each study of one ``senbench tune`` spent, side by side: the same trials, seeds
+    and frames per trial for every method is an equal tuning budget. ``studies``: (name,
+    study, target)."""
+    from senbench.tune.study import trial_counts
+
+    table = Table(title="tuning budget", caption=f"frames: over every trial of the study, "
+                  f"pruned ones up to where they stopped; cap: trials x {seeds} seeds x the "
+                  "budget. Labelled frames an encoder trains on are not online frames: "
+                  "the report charges them")
+    for column in ("study", "method", "env", "finished", "pruned", "failed", "frames",
+                   "cap"):
+        table.add_column(column, justify="left" if column in ("study", "method", "env")
+                         else "right")
+    for name, study, tgt in studies:
+        counts = trial_counts(study)
+        frames = sum(int(t.user_attrs.get("frames", 0)) for t in study.trials)
+        cap = len(study.trials) * seeds * tgt.template.budget
+        table.add_row(escape(name), escape(tgt.method), escape(tgt.env),
+                      str(counts["complete"]), str(counts["pruned"]), str(counts["fail"]),
+                      f"{frames:,}", f"{cap:,}")
+    return table
+
+
 def show_actions(table: pd.DataFrame, console: Console) -> None:
     """``actions_at``'s table: per method, what its evaluated policy did."""
     several = table["suite"].nunique() > 1

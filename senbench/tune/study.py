@@ -36,7 +36,6 @@ import numpy as np
 from senbench.analysis.summary import per_cell
 from senbench.errors import SuiteError
 from senbench.plugin.specs import Choice, Float, Int, Param  # noqa: F401 - Float, Int re-exported
-from senbench.results.outputs import written_whole
 from senbench.results.store import read_results, remove_stray_temp_files
 from senbench.run.execute import RunInfo
 from senbench.run.processes import run_processes
@@ -109,6 +108,34 @@ def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
     return Target(suite, method, env, template, space, fixed)
 
 
+def tune_targets(suite: Suite, methods: list[str] | None, env: str | None, regs: Any, *,
+                 named_study: bool, export: bool) -> list[Target]:
+    """Every (method, env) a ``senbench tune`` studies: the methods named (default: all of
+    the suite's), each on ``env`` or on every env it runs on; all checked before any runs."""
+    names = methods or list(suite.model.methods)
+    unknown = [m for m in names if m not in suite.model.methods]
+    if unknown:
+        raise SuiteError(f"--method {', '.join(unknown)}: not a method of suite "
+                         f"'{suite.name}' ({', '.join(suite.model.methods)})")
+    pairs = []
+    for method in dict.fromkeys(names):
+        envs = sorted({c.env for c in suite.select(methods=[method])})
+        if env is not None and env not in envs and methods is None:
+            continue  # every method: those that run on the env
+        for one in ([env] if env is not None else envs):
+            pairs.append((method, one))
+    if not pairs:
+        raise SuiteError(f"no method of suite '{suite.name}' runs on env '{env}'")
+    if named_study and len(pairs) > 1:
+        raise SuiteError(f"--study names one study, but this tunes {len(pairs)} (method, env) "
+                         "pairs: drop --study, or pick one --method and --env")
+    several = [m for m in dict.fromkeys(m for m, _ in pairs) if sum(x == m for x, _ in pairs) > 1]
+    if export and several:
+        raise SuiteError(f"--export writes one block per method, but {', '.join(several)} "
+                         "runs on several envs: pick one with --env")
+    return [target(suite, method, one, regs) for method, one in pairs]
+
+
 def narrow(param: Param, narrower: Any, where: str) -> Param:
     """The declared range cut to the suite's: within it, never wider."""
     if isinstance(param, Choice):
@@ -173,6 +200,8 @@ class PruningProgress:
     def __init__(self, trial: Any, cell_ids: list[str], log: Any):
         self.trial = trial
         self.evals: dict[str, dict[int, float]] = {cell_id: {} for cell_id in cell_ids}
+        self.frames: dict[str, int] = {}
+        """Frames each cell reported last: what a pruned trial spent."""
         self.reported: set[int] = set()
         self._log = log
 
@@ -192,6 +221,7 @@ class PruningProgress:
                eval_step: int | None = None) -> None:
         import optuna
 
+        self.frames[cell_id] = max(steps, self.frames.get(cell_id, 0))
         if last_eval is None or eval_step is None or cell_id not in self.evals:
             return
         self.evals[cell_id][eval_step] = last_eval
@@ -316,8 +346,13 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
         if summary.failed:  # the trial's encoder could not be trained
             raise RuntimeError(f"{summary.failed[0].error}")
         progress = PruningProgress(trial, [c.id for c in cells], log)
-        run_processes(cells, directory, info, min(workers, len(cells)), progress,
-                      summary)
+        trial.set_user_attr("frames", 0)
+        try:
+            run_processes(cells, directory, info, min(workers, len(cells)), progress,
+                          summary)
+            progress.frames = {c.id: c.budget for c in cells}  # ran to the end
+        finally:  # the tuning budget spent, pruned or not (senbench tune's budget table)
+            trial.set_user_attr("frames", int(sum(progress.frames.values())))
         if summary.failed:
             raise RuntimeError(f"{len(summary.failed)} cells failed: "
                                f"{summary.failed[0].error}")
@@ -330,37 +365,6 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
         study.optimize(run_trial, n_trials=trials - already, catch=(RuntimeError,),
                        callbacks=[optuna.study.MaxTrialsCallback(trials, states=counted)])
     return study
-
-
-def best_block(study: Any, tgt: Target) -> dict[str, Any]:
-    """The method's suite entry with the best trial's hyperparameters: a ``methods:`` block
-    a suite uses unchanged."""
-    entry = tgt.suite.model.methods[tgt.method].model_dump(exclude_unset=True)
-    best = _plain(study.best_trial.params)
-    entry["hyperparams"] = {**tgt.fixed,
-                            **{k: v for k, v in best.items() if not k.startswith(ENCODER)}}
-    tuned = {k[len(ENCODER):]: v for k, v in best.items() if k.startswith(ENCODER)}
-    if tuned:
-        entry["encoder"]["config"] = {**entry["encoder"].get("config", {}), **tuned}
-    return {tgt.method: entry}
-
-
-def export_best(study: Any, tgt: Target, path: Path, *, name: str, objective: str,
-                seeds: int) -> None:
-    """Write :func:`best_block` to ``path`` (a ``--export`` .yaml file) whole, headed by a
-    comment naming the study, the trial and its objective value."""
-    import yaml
-
-    text = yaml.safe_dump(best_block(study, tgt), sort_keys=False)
-    best = study.best_trial
-    with written_whole(path, "--export") as tmp:
-        tmp.write_text(f"# senbench tune: study '{name}', trial {best.number}, "
-                       f"{objective} {best.value:,.2f} over {seeds} seeds\n{text}")
-
-
-def _plain(values: dict[str, Any]) -> dict[str, Any]:
-    """numpy scalars → Python numbers, so that safe_dump writes plain YAML."""
-    return {k: (v.item() if hasattr(v, "item") else v) for k, v in values.items()}
 
 
 def trial_counts(study: Any) -> dict[str, int]:

@@ -1,0 +1,45 @@
+"""``senbench tune --export``: the best trial of each study as a suite ``methods:`` block."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from senbench.results.outputs import written_whole
+from senbench.tune.study import ENCODER, Target
+
+
+def best_block(study: Any, tgt: Target) -> dict[str, Any]:
+    """The method's suite entry with the best trial's hyperparameters: a ``methods:`` block
+    a suite uses unchanged."""
+    entry = tgt.suite.model.methods[tgt.method].model_dump(exclude_unset=True)
+    best = _plain(study.best_trial.params)
+    entry["hyperparams"] = {**tgt.fixed,
+                            **{k: v for k, v in best.items() if not k.startswith(ENCODER)}}
+    tuned = {k[len(ENCODER):]: v for k, v in best.items() if k.startswith(ENCODER)}
+    if tuned:
+        entry["encoder"]["config"] = {**entry["encoder"].get("config", {}), **tuned}
+    return {tgt.method: entry}
+
+
+def export_best(studies: list[tuple[Any, Target]], path: Path, *, objective: str,
+                seeds: int) -> None:
+    """Write each study's :func:`best_block` to ``path`` (a ``--export`` .yaml file) whole,
+    headed by a comment naming each study, its best trial and its objective value."""
+    import yaml
+
+    blocks: dict[str, Any] = {}
+    head = []
+    for study, tgt in studies:
+        blocks.update(best_block(study, tgt))
+        best = study.best_trial
+        head.append(f"# senbench tune: study '{study.study_name}', trial {best.number}, "
+                    f"{objective} {best.value:,.2f} over {seeds} seeds\n")
+    text = yaml.safe_dump(blocks, sort_keys=False)
+    with written_whole(path, "--export") as tmp:
+        tmp.write_text("".join(head) + text)
+
+
+def _plain(values: dict[str, Any]) -> dict[str, Any]:
+    """numpy scalars → Python numbers, so that safe_dump writes plain YAML."""
+    return {k: (v.item() if hasattr(v, "item") else v) for k, v in values.items()}
