@@ -32,13 +32,22 @@ class EnvSpec:
     """Reads the physical state (``state_labels`` order) from the env, which senbench
     passes unwrapped (gymnasium wrappers do not forward attributes such as ``state``)."""
     state_labels: tuple[str, ...]
+    """Names of the physical state's dimensions (d of them), as tables and plots label
+    them."""
     state_low: tuple[float, ...]
+    """Lower bound of each physical state dimension: the range the ``uniform`` sampler
+    draws states from and encoder errors are a % of. Not a hard limit: a state outside
+    it is still rendered and observed."""
     state_high: tuple[float, ...]
+    """Upper bound of each physical state dimension (see ``state_low``)."""
     actions: ActionKind
     threshold: float
     """Evaluation return from which a policy counts as solving the task."""
     threshold_source: str
+    """Where the threshold comes from (shown beside it)."""
     max_episode_steps: int
+    """The default episode cap, passed to ``make`` (which must enforce it); a suite's
+    ``max_episode_steps`` overrides it."""
     options: Mapping[str, type] = field(default_factory=dict)
     """Extra keyword options a suite may pass to ``make``, with their types."""
     description: str = ""
@@ -49,12 +58,18 @@ class EnvSpec:
     """``set_state(unwrapped_env, state)`` puts the env in a physical state (to sample
     labelled frames, and to compare renderers)."""
     observe: Callable[[np.ndarray], np.ndarray] | None = None
-    """``observe(states (B, d)) -> (B, k)``: the observation an agent on the true state
-    gets for each physical state — what a state encoder learns to predict."""
+    """``observe(states (B, d)) -> (B, k)`` float32: the observation an agent on the true
+    state gets for each physical state — what a state encoder learns to predict. It must
+    equal what ``make()``'s env returns in that state: the same k values, inside its
+    ``observation_space`` (an encoded observation is clipped to those bounds). Needed by
+    the ``encoded`` observation and by every sampler."""
     observation_labels: tuple[str, ...] = ()
+    """Names of the k observation dimensions, for tables of encoder errors and for
+    validation messages; empty: their indices."""
     demo_policy: Callable[[np.ndarray], Any] | None = None
-    """A policy on the observation that solves the task, for encoder traces along a
-    successful trajectory (the paper's Figs. 6 and 10)."""
+    """``demo_policy(observation (k,)) -> action``: a policy on the state observation that
+    solves the task, for encoder traces along a successful trajectory (the paper's Figs. 6
+    and 10). None: ``senbench plot traces`` follows random actions instead."""
 
     def capabilities(self) -> frozenset[str]:
         """What the env can do beyond its dynamics: those of ``"observe"``, ``"set_state"``
@@ -189,7 +204,12 @@ class AgentSpec:
 @dataclass(frozen=True)
 class EncoderSpec:
     """A state encoder architecture: ``build((stack, H, W), outputs, config)`` returns a
-    torch module mapping float frames in [0, 1], (B, stack, H, W), to (B, outputs)."""
+    torch module mapping float frames in [0, 1], (B, stack, H, W), to (B, outputs).
+
+    senbench trains it on the CPU against targets standardised per dimension (mean 0,
+    std 1 over the training set), so its last layer should be linear, not squashed. The
+    cache stores the trained weights only: ``build`` must return the same architecture for
+    the same (shape, outputs, config)."""
 
     name: str
     build: Callable[..., Any]
@@ -197,7 +217,7 @@ class EncoderSpec:
     description: str = ""
     traceable: bool = False
     """The network's forward has no control flow that depends on its input, so senbench
-    may freeze it into TorchScript for inference (1.4x faster at batch 1 for sen-resnet).
+    may freeze it into TorchScript for inference (1.6x faster at batch 1 for sen-resnet).
     Leave False unless that holds: a trace would silently fix one branch."""
     search_space: Mapping[str, Param] = field(default_factory=dict)
     """What ``senbench tune`` searches of the architecture's config, as ``encoder.<field>``
@@ -223,7 +243,15 @@ class EncoderSpec:
 class SamplerSpec:
     """A way to draw labelled data from an env: ``sample(env_spec, count, pixels, seed,
     config)`` returns (frames (N, stack, H, W) uint8, observations (N, k) float32), the
-    frames exactly as the pixel pipeline draws them for that observation."""
+    frames exactly as the pixel pipeline draws them for that observation.
+
+    Each stack is oldest frame first, as the pipeline stacks them, and its label is
+    ``env_spec.observe`` of the physical state of its newest frame. ``config`` is always an
+    instance of ``config``, resolved from the suite; the same seed must give the same
+    pairs (the encoder cache relies on it). With ``pixels.renderer: gymnasium`` the
+    pipeline draws with gymnasium's ``render()``: a sampler that needs ``render`` is refused
+    there, and one that steps ``make_env(env_spec, "pixels", ...)`` draws as the pipeline
+    does whatever the renderer."""
 
     name: str
     sample: Callable[..., Any]
@@ -257,7 +285,9 @@ class AgentContext:
     env: EnvSpec
     make_env: Callable[[], Any]
     """Builds a training env with the cell's observation pipeline; the agent seeds its
-    first ``reset`` with ``seed`` (vectorised agents: ``seed + i`` for env ``i``)."""
+    first ``reset`` with ``seed`` (vectorised agents: ``seed + i`` for env ``i``). Its
+    observation space says which observation the cell uses: a (stack, H, W) uint8 Box for
+    ``pixels``, a float Box of the k observation values for ``state`` and ``encoded``."""
     seed: int
     threads: int
     """torch threads this cell runs with (the suite's ``threads``), already set."""
@@ -267,8 +297,11 @@ class Recorder(Protocol):
     """The one protocol every agent reports through."""
 
     def step(self, steps: int) -> bool:
-        """Report the total environment steps (frames) taken so far; evaluations run here
-        when due. Returns False once the budget is spent: the agent stops."""
+        """Report the total environment steps (frames) taken so far, over all of the
+        agent's envs (a vectorised step of n envs adds n). Evaluations run here: at 0, at the
+        first report at or after each multiple of ``eval.every`` (recorded at the frame
+        reported) and at the budget; call it after every (vectorised) step so they land on
+        time. Returns False once the budget is spent: the agent stops."""
 
     def episode(self, steps: int, episode_return: float, length: int) -> None:
         """Report a finished training episode at ``steps`` total frames."""
@@ -279,4 +312,5 @@ class Agent(Protocol):
         """Learn for ``budget`` environment steps, calling ``recorder`` as it goes."""
 
     def act(self, observation: np.ndarray) -> Any:
-        """The greedy / deterministic action, used by evaluation."""
+        """The greedy / deterministic action for one observation (not a batch), used by
+        evaluation, which may call it from inside ``recorder.step`` during ``learn``."""

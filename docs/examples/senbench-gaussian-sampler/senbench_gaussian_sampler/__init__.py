@@ -26,12 +26,10 @@ class GaussianConfig:
 
 
 def sample(env: senbench.EnvSpec, count: int, pixels: senbench.PixelSpec, seed: int,
-           config: GaussianConfig | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(frames (count, stack, H, W) uint8, observations (count, k) float32)."""
-    config = config or GaussianConfig()
-    if env.set_state is None or env.render is None or env.observe is None:
-        raise ValueError(f"env '{env.name}' needs set_state, render and observe for the "
-                         "gaussian sampler")
+           config: GaussianConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(frames (count, stack, H, W) uint8, oldest first; observations (count, k) float32,
+    each that of its stack's newest state). The same seed gives the same pairs. The env has
+    set_state, render and observe: ``needs`` below makes validation check it."""
     rng = np.random.default_rng(seed)
     dynamics = env.make(max_episode_steps=2**31 - 1)
     dynamics.reset(seed=seed)
@@ -57,6 +55,7 @@ GAUSSIAN = senbench.SamplerSpec(
     config=GaussianConfig,
     description="states normal around the centre of the bounds; stacks from the dynamics",
     labels="states set by hand, normal around the centre of the bounds",
+    needs=frozenset({"set_state", "render", "observe"}),
 )
 
 
