@@ -24,9 +24,11 @@ from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Reco
 from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
     NATURE_CNN_MIN_FRAME,
+    PRECISIONS,
     is_frame_stack,
     learn_with_recorder,
     monitored_vec_env,
+    with_precision,
 )
 
 
@@ -107,7 +109,7 @@ class DQNAgent:
         algorithm, extra = self.algorithm(cfg, venv.observation_space.shape[1:])
         buffer_kwargs = {"handle_timeout_termination": not cfg.optimize_memory_usage,
                          **extra.pop("replay_buffer_kwargs", {})}
-        self.model = algorithm(
+        self.model = with_precision(algorithm, ctx.precision)(
             "CnnPolicy" if pixels else "MlpPolicy", venv,
             learning_rate=cfg.learning_rate, buffer_size=cfg.buffer_size,
             learning_starts=cfg.learning_starts, batch_size=cfg.batch_size, tau=cfg.tau,
@@ -179,7 +181,7 @@ def dqn_spec(name: str, agent: type, description: str) -> AgentSpec:
                                "mountaincar-bars": ZOO_MOUNTAINCAR,
                                "mountaincar-bars:pixels": ATARI_AT_1M},
                      description=description, search_space=DQN_SPACE,
-                     min_frame_size=NATURE_CNN_MIN_FRAME)
+                     min_frame_size=NATURE_CNN_MIN_FRAME, precisions=PRECISIONS)
 
 
 DQN_SPEC = dqn_spec("dqn", DQNAgent, "Stable-Baselines3 DQN: NatureCNN on pixels, MLP on a state")

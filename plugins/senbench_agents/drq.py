@@ -30,7 +30,7 @@ from senbench import AgentSpec
 from senbench_agents.augment import scaled_pad
 from senbench_agents.dqn import DQN_SPACE, DQNAgent, DQNConfig
 from senbench_agents.ranges import NonNegativeInt, PositiveInt, Probability
-from senbench_agents.sb3 import NATURE_CNN_MIN_FRAME
+from senbench_agents.sb3 import NATURE_CNN_MIN_FRAME, PRECISIONS
 
 
 @dataclass
@@ -43,7 +43,7 @@ class DrQConfig(DQNConfig):
     """Frames before the first update (DrQ's 1,600)."""
     train_freq: PositiveInt = 4
     """Frames between updates. DrQ updates every frame; 4 is the paper's pixel DQN's ratio,
-    at about 3.5x DrQ's speed here (benchmarks/agent_throughput.py)."""
+    at 2.8x the frames/s of every frame here (benchmarks/drq_sizing.py)."""
     target_update_interval: PositiveInt = 1
     """Frames between target copies: 1, so the target is the online network as it was
     before the update (DrQ copies it at every update)."""
@@ -182,4 +182,4 @@ DRQ_SPEC = AgentSpec(
     observations=frozenset({"pixels"}),
     description="DrQ: SB3's DQN on randomly shifted frames, target averaged over K shifts, "
     "loss over M (Kostrikov et al. 2020)",
-    search_space={**DQN_SPACE}, min_frame_size=min_frame_size)
+    search_space={**DQN_SPACE}, min_frame_size=min_frame_size, precisions=PRECISIONS)

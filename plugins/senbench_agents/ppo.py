@@ -19,9 +19,11 @@ from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Reco
 from senbench_agents.ranges import PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
     NATURE_CNN_MIN_FRAME,
+    PRECISIONS,
     is_frame_stack,
     learn_with_recorder,
     monitored_vec_env,
+    with_precision,
 )
 
 
@@ -63,7 +65,7 @@ class PPOAgent:
         cfg: PPOConfig = ctx.config
         activations = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
         venv = monitored_vec_env(ctx, cfg.n_envs)
-        self.model = PPO(
+        self.model = with_precision(PPO, ctx.precision)(
             "CnnPolicy" if is_frame_stack(venv.observation_space) else "MlpPolicy",
             venv,
             n_steps=cfg.n_steps,
@@ -132,6 +134,7 @@ PPO_SPEC = AgentSpec(
     },
     description="Stable-Baselines3 PPO: MLP actor-critic; NatureCNN under it on pixels",
     min_frame_size=NATURE_CNN_MIN_FRAME,
+    precisions=PRECISIONS,
     # After rl-baselines3-zoo's sample_ppo_params.
     search_space={
         "learning_rate": Float(1e-5, 3e-3, log=True),

@@ -33,9 +33,11 @@ from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Reco
 from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
     NATURE_CNN_MIN_FRAME,
+    PRECISIONS,
     is_frame_stack,
     learn_with_recorder,
     monitored_vec_env,
+    with_precision,
 )
 
 _ENT_COEF = re.compile(r"auto(_\d+(\.\d*)?(e-?\d+)?)?")
@@ -83,12 +85,12 @@ DRQ_SIZED = {"learning_rate": 1e-3, "buffer_size": 100_000, "learning_starts": 1
 """DrQ's SAC (its paper and its code's config.yaml) sized to this machine: lr 1e-3, a
 100k buffer, 1,000 random frames first, critic targets at τ 0.01 every 2 updates, initial
 temperature 0.1, hidden layers of 1,024, 50 features. Departures, each for cost (frames/s
-from benchmarks/agent_throughput.py): batch 64 (DrQ: 512 in the paper, 128 in its code);
-one update every 4 frames (DrQ updates once per agent step, which at its default action
-repeat of 4 is the same ratio; senbench has no action repeat); K = M = 1 (DrQ: 2, at 2.6x
-the cost per update here); SB3's NatureCNN, one per network (DrQ: one 4-layer CNN shared by
-actor and critic, the actor's gradient stopped); the actor updated at every update (DrQ:
-every 2)."""
+from benchmarks/drq_sizing.py): batch 64 (DrQ: 512 in the paper, 128 in its code, which
+runs at 0.52x the frames/s here); one update every 4 frames (DrQ updates once per agent
+step, which at its default action repeat of 4 is the same ratio; senbench has no action
+repeat); K = M = 1 (DrQ: 2, at 0.25x the frames/s here); SB3's NatureCNN, one per
+network (DrQ: one 4-layer CNN shared by actor and critic, the actor's gradient stopped);
+the actor updated at every update (DrQ: every 2)."""
 
 
 @dataclass
@@ -164,7 +166,7 @@ class SACAgent:
         policy_kwargs = {"net_arch": list(cfg.net_arch), "optimizer_kwargs": {"fused": True}}
         if pixels:
             policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}
-        self.model = SAC(
+        self.model = with_precision(SAC, ctx.precision)(
             "CnnPolicy" if pixels else "MlpPolicy", venv,
             learning_rate=cfg.learning_rate, buffer_size=cfg.buffer_size,
             learning_starts=cfg.learning_starts, batch_size=cfg.batch_size, tau=cfg.tau,
@@ -224,11 +226,11 @@ SAC_SPEC = AgentSpec(
               "pendulum:pixels": ON_PIXELS, "pendulum-bars:pixels": ON_PIXELS},
     description="Stable-Baselines3 SAC: MLP actor and twin critics; a NatureCNN under each "
     "on pixels",
-    search_space=SAC_SPACE, min_frame_size=NATURE_CNN_MIN_FRAME)
+    search_space=SAC_SPACE, min_frame_size=NATURE_CNN_MIN_FRAME, precisions=PRECISIONS)
 
 DRQ_SAC_SPEC = AgentSpec(
     name="drq-sac", make=DrQSACAgent, config=DrQSACConfig, actions=frozenset({"continuous"}),
     observations=frozenset({"pixels"}),
     description="DrQ's SAC: SB3's SAC on randomly shifted frames, target averaged over K "
     "shifts, critic loss over M (Kostrikov et al. 2020)",
-    search_space=SAC_SPACE, min_frame_size=drq_min_frame_size)
+    search_space=SAC_SPACE, min_frame_size=drq_min_frame_size, precisions=PRECISIONS)

@@ -46,3 +46,27 @@ def learn_with_recorder(model, budget: int, recorder: Recorder) -> None:
         # total_timesteps = budget: SB3's schedules (DQN's exploration) span the budget; the
         # callback stops collection at the budget itself, mid-rollout if need be.
         model.learn(total_timesteps=budget, callback=Report())
+
+
+PRECISIONS = frozenset({"fp32", "bf16"})
+"""What every SB3 agent offers: its updates in fp32, or in bf16 under torch.autocast."""
+
+
+def with_precision(algorithm: type, precision: str) -> type:
+    """``algorithm`` (an SB3 class) whose ``train`` (the network updates) runs under
+    ``torch.autocast("cpu", dtype=torch.bfloat16)`` for ``bf16``: matrix products and
+    convolutions in bf16, losses and the optimiser's state in fp32 (autocast's own rules).
+    Acting stays fp32. ``fp32``: the class itself."""
+    if precision == "fp32":
+        return algorithm
+    if precision != "bf16":
+        raise ValueError(f"precision must be fp32 or bf16, got {precision!r}")
+    import torch as th
+
+    class BF16(algorithm):
+        def train(self, *args, **kwargs):
+            with th.autocast("cpu", dtype=th.bfloat16):
+                return super().train(*args, **kwargs)
+
+    BF16.__name__ = BF16.__qualname__ = f"{algorithm.__name__}BF16"
+    return BF16

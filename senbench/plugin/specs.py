@@ -176,6 +176,9 @@ class AgentSpec:
     or a function of the resolved config (an instance of ``config``) when a hyperparameter
     decides it (an augmentation's pad, say). A suite with smaller frames is a validation
     error at its ``pixels``. None: any size a suite allows."""
+    precisions: frozenset[str] = frozenset({"fp32"})
+    """The ``precision`` values the agent honours (``AgentContext.precision``): a suite
+    asking for another is a validation error at its ``precision``."""
     needs_bounded_observations: bool = False
     """The agent reads the observation space's bounds (tile coding scales each dimension
     by them), so on ``state`` and ``encoded`` it needs every bound finite: an env whose
@@ -291,6 +294,10 @@ class AgentContext:
     seed: int
     threads: int
     """torch threads this cell runs with (the suite's ``threads``), already set."""
+    precision: str = "fp32"
+    """The arithmetic of the agent's network updates: ``fp32``, or ``bf16`` (for an agent
+    whose ``precisions`` include it: e.g. its updates under ``torch.autocast("cpu",
+    dtype=torch.bfloat16)``)."""
 
 
 class Recorder(Protocol):

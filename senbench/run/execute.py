@@ -106,7 +106,7 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
 
         _seed_everything(cell.seed)
         ctx = AgentContext(agent_spec.config(**cell.hyperparams), env_spec, make, cell.seed,
-                           cell.threads)
+                           cell.threads, cell.precision)
         agent = agent_spec.make(ctx)
         evaluator = Evaluator(make(), cell.eval_episodes, cell.seed, cell.eval_epsilon)
         report = None if progress is None else (lambda *a: progress(cell.id, *a))

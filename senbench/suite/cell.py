@@ -57,6 +57,8 @@ class Cell:
     """The agent's config after defaults: every field of its config class."""
     eval_epsilon: float = 0.0
     """Probability of a random action at each evaluation step."""
+    precision: str = "fp32"
+    """The arithmetic of the agent's network updates: fp32 or bf16."""
     env_options: dict[str, Any] = field(default_factory=dict)
     encoder: dict[str, Any] | None = None
     """The resolved encoder entry (architecture and sampler configs completed with their
@@ -91,7 +93,12 @@ class Cell:
             "pixels": None if self.pixels is None else dataclasses.asdict(self.pixels),
             "seed": self.seed, "budget": self.budget,
             "eval": self._eval(), "threads": self.threads,
+            **self._precision(),
         }
+
+    def _precision(self) -> dict[str, Any]:
+        """fp32, the neutral value, is left out: adding the option moved no id."""
+        return {} if self.precision == "fp32" else {"precision": self.precision}
 
     def _eval(self) -> dict[str, Any]:
         """The evaluation protocol. An option at its neutral value (ε = 0) is left out, so
@@ -120,7 +127,7 @@ class Cell:
             "method": self.method, "agent": self.agent, "observation": self.observation,
             "hyperparams": self.hyperparams, "encoder": self.encoder, "pixels": curve["pixels"],
             "variant": self.variant_values, "seed": self.seed, "budget": self.budget,
-            "eval": curve["eval"], "threads": self.threads,
+            "eval": curve["eval"], "threads": self.threads, **self._precision(),
             **({"labelled": {"frames": self.labelled_frames, "by": self.labelled_by}}
                if self.encoder is not None else {}),
             **({"reference": self.reference} if self.reference is not None else {}),
@@ -136,6 +143,7 @@ class Cell:
             budget=config["budget"], eval_every=config["eval"]["every"],
             eval_episodes=config["eval"]["episodes"],
             eval_epsilon=config["eval"].get("epsilon", 0.0),
+            precision=config.get("precision", "fp32"),
             max_episode_steps=config["env"]["max_episode_steps"], threads=config["threads"],
             hyperparams=config["hyperparams"], env_options=config["env"]["options"],
             encoder=config.get("encoder"),

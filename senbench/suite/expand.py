@@ -207,12 +207,19 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
     pixels_at: Loc = (("methods", method_name, "pixels") if method.pixels is not None
                       else ("pixels",) if "pixels" in model.model_fields_set
                       else ("methods", method_name, "observation"))
+    precision = method.precision or model.precision
+    if precision not in agent.precisions:
+        problem(("methods", method_name, "precision") if method.precision is not None
+                else ("precision",), f"agent '{agent.name}' computes in "
+                f"{' or '.join(sorted(agent.precisions))}, not {precision}; set precision: "
+                f"fp32 for method '{method_name}'")
+        return []
     defaults = agent.defaults_for(env_name, method.observation)
     common = dict(
         suite=model.name, method=method_name, env=env_name, agent=agent.name,
         observation=method.observation, budget=env_entry.budget or model.budget,
         eval_every=model.eval.every, eval_episodes=model.eval.episodes,
-        eval_epsilon=model.eval.epsilon,
+        eval_epsilon=model.eval.epsilon, precision=precision,
         max_episode_steps=env_entry.max_episode_steps or env_spec.max_episode_steps,
         threads=model.threads, env_options=dict(env_entry.options), pixels=pixels,
         threshold=float(env_spec.threshold if env_entry.threshold is None

@@ -1,0 +1,71 @@
+"""bf16 against fp32 network updates, side by side: frames/s of each learner while learning
+(one torch thread, timed from its first update on) with ``precision: fp32`` and ``bf16``,
+and the ratio. bf16 is torch.autocast on the CPU around the agent's updates
+(senbench_agents.sb3.with_precision); it pays where the updates are large matrix products
+and convolutions on a CPU with bf16 instructions, and costs where they are small.
+
+    .venv/bin/python benchmarks/precision.py          (≈ 5 min on an idle core)
+"""
+
+from __future__ import annotations
+
+import time
+
+from senbench.observe.observations import make_env
+from senbench.observe.pixels import PixelSpec
+from senbench.plugin.manager import registries
+from senbench.plugin.specs import AgentContext
+from senbench.run.processes import set_threads
+
+LEARNERS = [  # (agent, observation, env, frames timed)
+    ("dqn", "pixels", "mountaincar", 1_000),
+    ("drq", "pixels", "mountaincar", 1_000),
+    ("ppo", "pixels", "pendulum", 1_028),
+    ("sac", "state", "pendulum", 500),
+    ("drq-sac", "pixels", "pendulum", 200),
+]
+
+
+class Count:
+    def __init__(self, budget: int):
+        self.budget = budget
+
+    def step(self, steps: int) -> bool:
+        return steps < self.budget
+
+    def episode(self, *args) -> None:
+        pass
+
+
+def frames_per_second(agent_name: str, observation: str, env_name: str, frames: int,
+                      precision: str) -> float:
+    regs = registries()
+    spec, agent = regs.envs.get(env_name), regs.agents.get(agent_name)
+    defaults = agent.defaults_for(env_name, observation)
+    values = dict(defaults.values) if defaults else {}
+    if "learning_starts" in agent.config.__dataclass_fields__:
+        values["learning_starts"] = 0  # time learning, not the warm-up
+    if agent_name == "ppo":
+        values.update(n_envs=4, n_steps=256)  # a rollout and its update within the frames
+
+    def make():
+        return make_env(spec, observation, spec.max_episode_steps, {}, PixelSpec())
+
+    learner = agent.make(AgentContext(agent.config(**values), spec, make, 0, 1, precision))
+    start = time.perf_counter()
+    learner.learn(frames, Count(frames))
+    return frames / (time.perf_counter() - start)
+
+
+def main() -> None:
+    set_threads(1)
+    print(f"{'agent':8s} {'observation':11s} {'fp32 f/s':>9s} {'bf16 f/s':>9s} {'bf16/fp32':>9s}")
+    for agent, observation, env, frames in LEARNERS:
+        fp32 = frames_per_second(agent, observation, env, frames, "fp32")
+        bf16 = frames_per_second(agent, observation, env, frames, "bf16")
+        print(f"{agent:8s} {observation:11s} {fp32:9.1f} {bf16:9.1f} {bf16 / fp32:9.2f}",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()
