@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from learners import Count
 
 from senbench.encoders import EncoderRequest, StateEncoder, build_model, observation_bounds
 from senbench.observe.observations import make_env
@@ -54,17 +55,6 @@ PAIRS = [  # (agent, observation, env, frames to time): every pair the agents ac
     ("sac", "pixels", "pendulum", 300),
     ("drq-sac", "pixels", "pendulum", 300),
 ]
-
-
-class Count:
-    def __init__(self, budget: int):
-        self.budget = budget
-
-    def step(self, steps: int) -> bool:
-        return steps < self.budget
-
-    def episode(self, *args) -> None:
-        pass
 
 
 def untrained_encoder(env_name: str) -> StateEncoder:

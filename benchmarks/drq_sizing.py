@@ -10,12 +10,8 @@ paper uses K = M = 2 and batch 512 (its code: 128); the default is K = M = 1, ba
 
 from __future__ import annotations
 
-import time
+from learners import learning_rate
 
-from senbench.observe.observations import make_env
-from senbench.observe.pixels import PixelSpec
-from senbench.plugin.manager import registries
-from senbench.plugin.specs import AgentContext
 from senbench.run.processes import set_threads
 
 SETTINGS = [  # (agent, env, frames to time, hyperparams beyond the defaults)
@@ -27,29 +23,9 @@ SETTINGS = [  # (agent, env, frames to time, hyperparams beyond the defaults)
 ]
 
 
-class Count:
-    def __init__(self, budget: int):
-        self.budget = budget
-
-    def step(self, steps: int) -> bool:
-        return steps < self.budget
-
-    def episode(self, *args) -> None:
-        pass
-
-
 def frames_per_second(agent_name: str, env_name: str, frames: int, hyperparams: dict) -> float:
-    regs = registries()
-    spec, agent = regs.envs.get(env_name), regs.agents.get(agent_name)
-    config = agent.config(**{"learning_starts": 0, **hyperparams})
-
-    def make():
-        return make_env(spec, "pixels", spec.max_episode_steps, {}, PixelSpec())
-
-    learner = agent.make(AgentContext(config, spec, make, 0, 1))
-    start = time.perf_counter()
-    learner.learn(frames, Count(frames))
-    return frames / (time.perf_counter() - start)
+    return learning_rate(agent_name, "pixels", env_name, frames,
+                         {"learning_starts": 0, **hyperparams})
 
 
 def main() -> None:

@@ -9,12 +9,9 @@ and convolutions on a CPU with bf16 instructions, and costs where they are small
 
 from __future__ import annotations
 
-import time
+from learners import learning_rate
 
-from senbench.observe.observations import make_env
-from senbench.observe.pixels import PixelSpec
 from senbench.plugin.manager import registries
-from senbench.plugin.specs import AgentContext
 from senbench.run.processes import set_threads
 
 LEARNERS = [  # (agent, observation, env, frames timed)
@@ -26,35 +23,16 @@ LEARNERS = [  # (agent, observation, env, frames timed)
 ]
 
 
-class Count:
-    def __init__(self, budget: int):
-        self.budget = budget
-
-    def step(self, steps: int) -> bool:
-        return steps < self.budget
-
-    def episode(self, *args) -> None:
-        pass
-
-
 def frames_per_second(agent_name: str, observation: str, env_name: str, frames: int,
                       precision: str) -> float:
-    regs = registries()
-    spec, agent = regs.envs.get(env_name), regs.agents.get(agent_name)
+    agent = registries().agents.get(agent_name)
     defaults = agent.defaults_for(env_name, observation)
     values = dict(defaults.values) if defaults else {}
     if "learning_starts" in agent.config.__dataclass_fields__:
         values["learning_starts"] = 0  # time learning, not the warm-up
     if agent_name == "ppo":
         values.update(n_envs=4, n_steps=256)  # a rollout and its update within the frames
-
-    def make():
-        return make_env(spec, observation, spec.max_episode_steps, {}, PixelSpec())
-
-    learner = agent.make(AgentContext(agent.config(**values), spec, make, 0, 1, precision))
-    start = time.perf_counter()
-    learner.learn(frames, Count(frames))
-    return frames / (time.perf_counter() - start)
+    return learning_rate(agent_name, observation, env_name, frames, values, precision)
 
 
 def main() -> None:
