@@ -106,21 +106,37 @@ PIXELS = """\
 name: pixels
 envs:
   mountaincar: {}
+  pendulum: {}
 methods:
   dqn-pixels:
     agent: dqn
+    envs: [mountaincar]
     observation: pixels
     hyperparams: {learning_starts: 100, buffer_size: 500, batch_size: 16,
                   train_freq: 4, gradient_steps: 1, features_dim: 64}
   ddqn-pixels:
     agent: ddqn
+    envs: [mountaincar]
     observation: pixels
     hyperparams: {learning_starts: 100, buffer_size: 500, batch_size: 16,
                   train_freq: 4, gradient_steps: 1, features_dim: 64}
   ppo-pixels:
     agent: ppo
+    envs: [mountaincar]
     observation: pixels
     hyperparams: {n_steps: 64, batch_size: 32, n_epochs: 1}
+  drq-pixels:
+    agent: drq
+    envs: [mountaincar]
+    observation: pixels
+    hyperparams: {learning_starts: 100, buffer_size: 500, batch_size: 16, features_dim: 64,
+                  k: 2, m: 2, n_steps: 3}
+  drq-sac-pixels:
+    agent: drq-sac
+    observation: pixels
+    envs: [pendulum]
+    hyperparams: {learning_starts: 100, buffer_size: 500, batch_size: 8, features_dim: 16,
+                  net_arch: [32], train_freq: 8, k: 2, m: 2}
 pixels: {height: 40, width: 40}
 seeds: [0]
 budget: 400
@@ -134,7 +150,7 @@ def test_pixel_agents_learn_from_frames_and_repeat_their_curves(write_suite, tmp
     curves = []
     for run in ("a", "b"):
         summary = run_suite(suite, tmp_path / run)
-        assert summary.ok == 3, [o.error for o in summary.failed]
+        assert summary.ok == 5, [o.error for o in summary.failed]
         curves.append(curves_of(tmp_path / run / "pixels"))
     assert curves[0].equals(curves[1])
     evals = curves[0][curves[0]["kind"] == "eval"]

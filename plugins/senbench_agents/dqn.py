@@ -99,7 +99,7 @@ class DQNAgent:
         venv = monitored_vec_env(ctx, 1)
         pixels = is_frame_stack(venv.observation_space)
         if pixels and min(venv.observation_space.shape[1:]) < NATURE_CNN_MIN_FRAME:
-            raise ValueError("dqn and ddqn on pixels use SB3's NatureCNN, which needs frames "
+            raise ValueError("on pixels this agent uses SB3's NatureCNN, which needs frames "
                              "of at least 36x36; set pixels: {height: 36, width: 36} or more")
         # Fused Adam: the same update as SB3's default Adam in one kernel per step; a
         # pixel DQN update takes 7.0 instead of 9.8 ms on one core.
