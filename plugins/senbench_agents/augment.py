@@ -10,7 +10,12 @@ frame, which is what :func:`random_shift` does: no padded copy, and uint8 stays 
 
 from __future__ import annotations
 
-import torch as th
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # torch is imported on first use: listing plugins does not import it
+    import torch as th
+
+from senbench_agents.sb3 import NATURE_CNN_MIN_FRAME
 
 DRQ_PAD, DRQ_FRAME = 4, 84
 """DrQ pads its 84x84 frames by 4 pixels."""
@@ -20,6 +25,12 @@ def scaled_pad(height: int, width: int) -> int:
     """DrQ's pad scaled to a frame size: 4 pixels at 84, 3 at 64 (the same share of the
     frame), at least 1."""
     return max(1, round(DRQ_PAD * min(height, width) / DRQ_FRAME))
+
+
+def min_frame_size(config: Any) -> int:
+    """The smallest frame a DrQ learner (a config with ``pad``) takes: NatureCNN's 36, and
+    twice the pad, since a shift moves a frame by at most half of it."""
+    return max(NATURE_CNN_MIN_FRAME, 2 * (config.pad or 0))
 
 
 def random_shift(frames: th.Tensor, pad: int, generator: th.Generator | None = None
@@ -35,6 +46,8 @@ def random_shift(frames: th.Tensor, pad: int, generator: th.Generator | None = N
                          f"{height}x{width} frames (at most half the frame), got {pad}")
     if pad == 0:
         return frames
+    import torch as th
+
     offsets = th.randint(-pad, pad + 1, (2, batch), generator=generator)
     rows = (th.arange(height)[None, :] + offsets[0][:, None]).clamp_(0, height - 1)
     cols = (th.arange(width)[None, :] + offsets[1][:, None]).clamp_(0, width - 1)

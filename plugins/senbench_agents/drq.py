@@ -27,10 +27,10 @@ from pydantic import Field
 from pydantic.dataclasses import dataclass
 
 from senbench import AgentSpec
-from senbench_agents.augment import scaled_pad
+from senbench_agents.augment import min_frame_size, scaled_pad
 from senbench_agents.dqn import DQN_SPACE, DQNAgent, DQNConfig
 from senbench_agents.ranges import NonNegativeInt, PositiveInt, Probability
-from senbench_agents.sb3 import NATURE_CNN_MIN_FRAME, PRECISIONS
+from senbench_agents.sb3 import PRECISIONS
 
 
 @dataclass
@@ -66,11 +66,6 @@ class DrQConfig(DQNConfig):
         if self.n_steps > 1 and self.optimize_memory_usage:
             raise ValueError("n_steps > 1 needs optimize_memory_usage: false (SB3's n-step "
                              "replay stores next observations)")
-
-
-def min_frame_size(config: DrQConfig) -> int:
-    """NatureCNN's 36, and twice the pad: a shift moves a frame by at most half of it."""
-    return max(NATURE_CNN_MIN_FRAME, 2 * (config.pad or 0))
 
 
 @cache

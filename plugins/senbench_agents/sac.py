@@ -30,6 +30,7 @@ from pydantic import Field
 from pydantic.dataclasses import dataclass
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
+from senbench_agents.augment import min_frame_size as shifted_min_frame_size
 from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
     NATURE_CNN_MIN_FRAME,
@@ -210,11 +211,6 @@ SAC_SPACE = {  # after rl-baselines3-zoo's sample_sac_params
 }
 
 
-def drq_min_frame_size(config: DrQSACConfig) -> int:
-    """NatureCNN's 36, and twice the pad: a shift moves a frame by at most half of it."""
-    return max(NATURE_CNN_MIN_FRAME, 2 * (config.pad or 0))
-
-
 ON_PIXELS = AgentDefaults(
     values=DRQ_SIZED, source="drq-sac's defaults without its shifts: DrQ's SAC (Kostrikov et "
     "al. 2020) sized to this machine")
@@ -233,4 +229,4 @@ DRQ_SAC_SPEC = AgentSpec(
     observations=frozenset({"pixels"}),
     description="DrQ's SAC: SB3's SAC on randomly shifted frames, target averaged over K "
     "shifts, critic loss over M (Kostrikov et al. 2020)",
-    search_space=SAC_SPACE, min_frame_size=drq_min_frame_size, precisions=PRECISIONS)
+    search_space=SAC_SPACE, min_frame_size=shifted_min_frame_size, precisions=PRECISIONS)
