@@ -36,6 +36,22 @@ class CrashAgent:
             self.env.step(0)
 
 
+@dataclass
+class CrashSeedConfig:
+    seed: int = 1
+    """The seed that raises; the others run to the budget."""
+    after: int = 10
+
+
+class CrashSeedAgent(CrashAgent):
+    """Raises on one seed only: a seed batch's other seeds must finish (encoded frames, so
+    it can run in a seed batch)."""
+
+    def __init__(self, ctx):
+        super().__init__(ctx)
+        self.after = ctx.config.after if ctx.seed == ctx.config.seed else -1
+
+
 class DieAgent(CrashAgent):
     """Kills its own process: what an out-of-memory kill looks like to the runner."""
 
@@ -142,6 +158,8 @@ class NanAgent:
 def register_agents(register):
     kinds = frozenset({"discrete"})
     register(AgentSpec("crash", CrashAgent, CrashConfig, kinds, frozenset({"state"})))
+    register(AgentSpec("crash-seed", CrashSeedAgent, CrashSeedConfig, kinds,
+                       frozenset({"encoded"}), seed_batching=True))
     register(AgentSpec("die", DieAgent, CrashConfig, kinds, frozenset({"state"})))
     register(AgentSpec("slow", SlowAgent, SlowConfig, kinds, frozenset({"state"})))
     register(AgentSpec("exit", ExitAgent, CrashConfig, kinds, frozenset({"state"})))

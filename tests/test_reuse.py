@@ -180,3 +180,18 @@ def test_the_cli_says_how_many_cells_it_copied(write_suite, tmp_path, cli_env):
     assert done.stderr.count("copied sarsa") == 0  # labels print whole, variant included
     assert done.stderr.count("copied mountaincar/sarsa-swept[hyperparams.alpha=0.5] seed") == 2
     assert "1 copied cells were computed by another senbench commit" in done.stderr
+
+
+def test_a_file_written_before_a_column_was_added_is_copied_with_it_null(write_suite,
+                                                                        tmp_path):
+    """Results committed before ``seed_batch`` existed stay reusable (the -plus suites
+    reuse the paper suites' cells)."""
+    main = load(write_suite, MAIN.replace("seeds: 2", "seeds: 1"), "main.yaml")
+    run_suite(main, tmp_path / "results")
+    path = tmp_path / "results" / "main" / "cells" / f"{main.cells[0].id}.parquet"
+    pq.write_table(pq.read_table(path).drop_columns(["seed_batch"]), path)  # an older file
+    summary = run_suite(main, tmp_path / "again", reuse=[tmp_path / "results" / "main"])
+    assert summary.reused == 1
+    copied = pq.read_table(tmp_path / "again" / "main" / "cells" / path.name)
+    assert copied.schema.equals(SCHEMA) and copied["seed_batch"].null_count == len(copied)
+    assert read_results(tmp_path / "results" / "main")["seed_batch"].isna().all()

@@ -137,6 +137,7 @@ SARSA_SPEC = AgentSpec(
     },
     description="SARSA(λ) with tile coding and replacing traces, vectorised NumPy",
     needs_bounded_observations=True,  # the tile coder scales by the bounds
+    seed_batching=True,  # its own generator only: NumPy, no torch
     search_space={  # the ranges of benchmarks/sarsa_tiles_sweep.py, widened
         "tilings": Choice((4, 8, 16, 32)),
         "tiles": Int(4, 12),

@@ -179,6 +179,12 @@ class AgentSpec:
     precisions: frozenset[str] = frozenset({"fp32"})
     """The ``precision`` values the agent honours (``AgentContext.precision``): a suite
     asking for another is a validation error at its ``precision``."""
+    seed_batching: bool = False
+    """The agent may run beside other seeds in one process (a suite's ``seed_batch``; see
+    :mod:`senbench.run.batch`): each seed in a thread of its own, their frames encoded in
+    one batch. True only for an agent that draws from no process-global random generator
+    (Python's ``random``, NumPy's ``np.random.*``, torch's default generator), since the
+    seeds of one process share those, and that keeps no other process-wide state."""
     needs_bounded_observations: bool = False
     """The agent reads the observation space's bounds (tile coding scales each dimension
     by them), so on ``state`` and ``encoded`` it needs every bound finite: an env whose

@@ -64,8 +64,18 @@ SCHEMA = pa.schema(
         ("action_share", pa.list_(pa.float64())),
         ("action_mean", pa.list_(pa.float64())),
         ("action_std", pa.list_(pa.float64())),
+        # seeds that shared the cell's encoder passes (senbench.run.batch); null: alone,
+        # in results written before the option
+        ("seed_batch", pa.int64()),
     ]
 )
+
+
+def readable_schema(schema: pa.Schema) -> bool:
+    """Whether a file of this schema reads as :data:`SCHEMA`: each of its columns is one of
+    SCHEMA's, of the same type. A column added since (``seed_batch``) reads as null."""
+    fields = {field.name: field.type for field in SCHEMA}
+    return all(fields.get(field.name) == field.type for field in schema)
 
 
 def cells_dir(results_root: str | Path, suite_name: str) -> Path:

@@ -1,4 +1,4 @@
-"""Running one cell: build its observation pipeline and agent, learn, evaluate, write.
+"""Running one cell: build its observation pipeline and agent, learn, evaluate.
 
 A cell that raises is recorded as ``failed`` with its error text and the rows it had; a
 KeyboardInterrupt is not caught, so an interrupted cell writes nothing.
@@ -77,20 +77,18 @@ class CellOutcome:
     wall_s: float
 
 
-def run_cell(cell: Cell, directory: Path, info: RunInfo,
-             progress: ProgressCallback | None = None) -> CellOutcome:
-    """Run a cell and write its result file."""
-    rows, outcome = execute_cell(cell, info, progress)
-    write_cell(directory, cell.id, rows)
-    return outcome
-
-
-def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = None
-                 ) -> tuple[list[dict[str, Any]], CellOutcome]:
+def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = None,
+                 encoder: Any = None) -> tuple[list[dict[str, Any]], CellOutcome]:
     """Run a cell: its result rows, and its outcome. Nothing is written here, so a cell can
-    run where the results are not (a Ray worker) and the caller writes them."""
+    run where the results are not (a Ray worker) and the caller writes them.
+
+    ``encoder``: a state encoder the seeds of a batch share (senbench.run.batch), the cell
+    running in a thread beside them: the process-wide generators are then left unseeded (a
+    batching agent draws from none) and the peak memory is the batch's."""
     started = datetime.now(UTC)
-    _reset_peak_rss()
+    alone = encoder is None
+    if alone:
+        _reset_peak_rss()
     recorder: CellRecorder | None = None
     status, error = "ok", None
     try:
@@ -98,13 +96,15 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
         env_spec = regs.envs.get(cell.env)
         agent_spec = regs.agents.get(cell.agent)
         request = cell.encoder_request()
-        encoder = None if request is None else load_or_train(info.encoder_cache, request, regs)
+        if alone and request is not None:
+            encoder = load_or_train(info.encoder_cache, request, regs)
 
         def make() -> Any:
             return make_env(env_spec, cell.observation, cell.max_episode_steps,
                             cell.env_options, cell.pixels, encoder)
 
-        _seed_everything(cell.seed)
+        if alone:
+            _seed_everything(cell.seed)
         ctx = AgentContext(agent_spec.config(**cell.hyperparams), env_spec, make, cell.seed,
                            cell.threads, cell.precision)
         agent = agent_spec.make(ctx)
@@ -146,6 +146,7 @@ def cell_metadata(cell: Cell, info: RunInfo, status: str, error: str | None,
         "encoder_id": None if request is None else request.id,
         **{f"{k}_version": v for k, v in info.versions.items()},
         "git_commit": info.git_commit, "host": info.host, "threads": cell.threads,
+        "seed_batch": cell.seed_batch,
         "started_at": started, "ended_at": ended, "cell_wall_s": wall,
         "peak_rss_mb": _peak_rss_mb(),
     }

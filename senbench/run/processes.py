@@ -23,7 +23,8 @@ import psutil
 
 from senbench.plugin import manager as plugins
 from senbench.results.store import remove_stray_temp_files
-from senbench.run.execute import CellOutcome, RunInfo, record_lost_cell, run_cell
+from senbench.run.batch import run_cells
+from senbench.run.execute import CellOutcome, RunInfo, record_lost_cell
 from senbench.run.progress import Progress
 from senbench.run.schedule import Schedule
 from senbench.run.summary import RunSummary
@@ -40,16 +41,22 @@ def usable_cores() -> int:
 
 def run_serial(schedule: Schedule, directory: Path, info: RunInfo, progress: Progress,
                 summary: RunSummary) -> None:
-    while (cell := schedule.next()) is not None:
-        progress.started(cell.id, cell.label, cell.budget)
-        set_threads(cell.threads)
+    while batch := schedule.next_batch():
+        for cell in batch:
+            progress.started(cell.id, cell.label, cell.budget)
+        set_threads(batch[0].threads)
+        by_id = {cell.id: cell for cell in batch}
+
+        def written(outcome: CellOutcome, by_id: dict[str, Cell] = by_id) -> None:
+            summary.outcomes.append(outcome)
+            schedule.finished(by_id.pop(outcome.cell_id), outcome.status, outcome.wall_s)
+            progress.finished(outcome)
+
         try:
-            outcome = run_cell(cell, directory, info, progress.update)
-        except Exception as exc:  # outside the agent: e.g. the result could not be written
-            outcome = record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
-        summary.outcomes.append(outcome)
-        schedule.finished(cell, outcome.status, outcome.wall_s)
-        progress.finished(outcome)
+            run_cells(batch, directory, info, progress.update, written)
+        except Exception as exc:  # outside the agents: those not yet written are lost
+            for cell in list(by_id.values()):
+                written(record_lost_cell(cell, directory, info, f"crashed: {exc!r}"))
 
 
 def _context() -> Any:
@@ -64,19 +71,28 @@ def _context() -> Any:
     return context
 
 
-def _cell_process(cell: Cell, directory: Path, info: RunInfo, events: Any,
+def _cell_process(cells: list[Cell], directory: Path, info: RunInfo, events: Any,
                   extra_plugins: list[tuple[str, str, str]], parent: int) -> None:
+    """Run a cell, or the seeds of one batch, and tell the runner each outcome once that
+    cell's file is written."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
-    set_threads(cell.threads)
+    set_threads(cells[0].threads)
     plugins.register_modules(extra_plugins)
+    told: set[str] = set()
+
+    def written(outcome: CellOutcome) -> None:
+        told.add(outcome.cell_id)
+        _tell(events, ("outcome", outcome))
+
     try:
-        outcome = run_cell(cell, directory, info,
-                           lambda *args: _tell(events, ("update", *args)))
-    except Exception as exc:  # outside the agent: record it as this cell's failure
-        outcome = record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
-    _tell(events, ("outcome", outcome))  # written before this process exits
+        run_cells(cells, directory, info, lambda *args: _tell(events, ("update", *args)),
+                  written)
+    except Exception as exc:  # outside the agents: record it as their failure
+        for cell in cells:
+            if cell.id not in told:
+                written(record_lost_cell(cell, directory, info, f"crashed: {exc!r}"))
     events.close()
 
 
@@ -104,45 +120,59 @@ def run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int
                    progress: Progress, summary: RunSummary,
                    schedule: Schedule | None = None) -> None:
     """Run ``todo`` in ``workers`` processes at a time, in the order ``schedule`` (default:
-    ``todo``'s, all of them) hands them out."""
+    ``todo``'s, all of them) hands them out: a process per cell, or per seed batch."""
     context = _context()
     schedule = schedule or Schedule(todo)
-    running: dict[str, tuple[Cell, Any]] = {}
+    running: dict[str, tuple[list[Cell], Any]] = {}  # by the first cell's id
     pipes: dict[str, Any] = {}
     outcomes: dict[str, CellOutcome] = {}
     extra = plugins.registered_module_names()
+
+    def finish(cell: Cell, outcome: CellOutcome) -> None:
+        summary.outcomes.append(outcome)
+        schedule.finished(cell, outcome.status, outcome.wall_s)
+        progress.finished(outcome)
+
     try:
         while True:
-            while len(running) < workers and (cell := schedule.next()) is not None:
-                # A pipe per cell, not a shared Queue: a Queue's semaphore vanishes with the
-                # runner, and a cell still unpacking its arguments then dies with a traceback.
+            while len(running) < workers and (batch := schedule.next_batch()):
+                # A pipe per process, not a shared Queue: a Queue's semaphore vanishes with
+                # the runner, and a cell still unpacking its arguments then dies with a
+                # traceback.
                 reader, writer = context.Pipe(duplex=False)
+                key = batch[0].id
                 process = context.Process(
-                    target=_cell_process, daemon=True, name=f"senbench-cell-{cell.id}",
-                    args=(cell, directory, info, writer, extra, os.getpid()))
+                    target=_cell_process, daemon=True, name=f"senbench-cell-{key}",
+                    args=(batch, directory, info, writer, extra, os.getpid()))
                 with signals_held():  # a Ctrl-C mid-start would orphan a half-made cell
                     process.start()
-                    running[cell.id] = (cell, process)
-                    pipes[cell.id] = reader
+                    running[key] = (batch, process)
+                    pipes[key] = reader
                 writer.close()
-                progress.started(cell.id, cell.label, cell.budget)
+                for cell in batch:
+                    progress.started(cell.id, cell.label, cell.budget)
             if not running:
                 break
             _drain(pipes, progress, outcomes, timeout=0.2)
-            for cell_id, (cell, process) in list(running.items()):
-                if process.exitcode is None:
+            for key, (batch, process) in list(running.items()):
+                for cell in [c for c in batch if c.id in outcomes]:  # a seed that finished
+                    finish(cell, outcomes.pop(cell.id))
+                    batch.remove(cell)
+                if process.exitcode is None and batch:
                     continue
                 deadline = time.monotonic() + 2.0
-                while cell_id not in outcomes and time.monotonic() < deadline:
+                while (any(c.id not in outcomes for c in batch)
+                       and time.monotonic() < deadline):
                     _drain(pipes, progress, outcomes, timeout=0.05)
-                outcome = outcomes.pop(cell_id, None)
-                if outcome is None:
-                    outcome = record_lost_cell(cell, directory, info, _death(process.exitcode))
-                del running[cell_id]
-                pipes.pop(cell_id).close()
-                summary.outcomes.append(outcome)
-                schedule.finished(cell, outcome.status, outcome.wall_s)
-                progress.finished(outcome)
+                for cell in batch:
+                    outcome = outcomes.pop(cell.id, None)
+                    if outcome is None:
+                        outcome = record_lost_cell(cell, directory, info,
+                                                   _death(process.exitcode))
+                    finish(cell, outcome)
+                process.join(timeout=5)
+                del running[key]
+                pipes.pop(key).close()
     except BaseException:
         for _, process in running.values():
             process.kill()

@@ -1,7 +1,9 @@
 """Running a suite's cells as Ray tasks: ``senbench run SUITE --executor ray``.
 
 Each cell is one task that declares the CPUs it uses (its torch threads), so Ray places it
-on a node with that many free. The task runs the cell where it lands and returns its rows;
+on a node with that many free. A cell of a seed batch runs as a task of its own too (its
+encoder passes padded to the batch, so its curve is the one it has in a batch; the speed-up
+of batching is the local executor's). The task runs the cell where it lands and returns its rows;
 the driver writes them with the same atomic per-cell files as a local run, so workers need
 no shared disk, and resume is the local runner's (finished files are skipped before any
 task is submitted). Encoders are trained once by the driver and put in Ray's object store;
@@ -29,7 +31,8 @@ from senbench.errors import SenbenchError
 from senbench.plugin import manager as plugins
 from senbench.results.atomic import atomic_folder
 from senbench.results.store import remove_stray_temp_files, write_cell
-from senbench.run.execute import CellOutcome, RunInfo, execute_cell, lost_cell, record_lost_cell
+from senbench.run.batch import execute_cells
+from senbench.run.execute import CellOutcome, RunInfo, lost_cell, record_lost_cell
 from senbench.run.processes import set_threads, signals_held, usable_cores
 from senbench.run.progress import Progress
 from senbench.suite import Cell
@@ -251,7 +254,7 @@ def _ray_cell(cell: Cell, info: RunInfo, key: str | None, files: dict[str, bytes
             last = now
             sink.tell.remote(("update", cell_id, steps, rate, last_eval, eval_step))
 
-    try:
-        return execute_cell(cell, here, report)
+    try:  # a seed of a batch runs alone here, its passes padded to its batch: same curve
+        return execute_cells([cell], here, report)[0]
     except Exception as exc:  # outside the agent (e.g. its encoder would not load): no retry
         return lost_cell(cell, here, f"crashed: {exc!r}")

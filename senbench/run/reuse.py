@@ -22,7 +22,7 @@ import pyarrow.parquet as pq
 
 from senbench.errors import SenbenchError
 from senbench.results.atomic import atomic_folder
-from senbench.results.store import SCHEMA, write_table
+from senbench.results.store import SCHEMA, readable_schema, write_table
 from senbench.suite import Cell
 
 
@@ -40,9 +40,9 @@ def _finished_table(path: Path) -> pa.Table | None:
     the id in its name (so a file of an older senbench, with ids of another scheme, never
     stands in for a cell it did not compute)."""
     try:
-        if not pq.read_schema(path).equals(SCHEMA):
+        if not readable_schema(pq.read_schema(path)):
             return None  # written by a senbench whose results had other columns
-        table = pq.read_table(path)
+        table = pq.read_table(path, schema=SCHEMA)  # a column added since: null
     except (pa.ArrowInvalid, OSError):
         return None  # unreadable, or gone: not a finished cell
     for kind, status, config in zip(*(table[c].to_pylist() for c in

@@ -101,6 +101,26 @@ class Schedule:
             self._passed_over(cell)
         return None
 
+    def next_batch(self) -> list[Cell]:
+        """The cells to start now in one process: the next cell, and, if it runs in a seed
+        batch, waiting seeds of its batch key up to the batch's size (empty: none to
+        start). The seeds of a batch take as long together as one alone, so the next
+        cell's fit under a time limit is theirs."""
+        first = self.next()
+        if first is None:
+            return []
+        batch = [first]
+        for cell in list(self.waiting):
+            if len(batch) == first.seed_batch:
+                break
+            if cell.batch_key != first.batch_key:
+                continue
+            if self.claims is None or self.claims.take(cell.id):
+                self.waiting.remove(cell)
+                self._running[_key(cell)] += 1
+                batch.append(cell)
+        return batch
+
     def _mtime(self, cell: Cell) -> int | None:
         try:
             return cell_path(self.claims.directory, cell.id).stat().st_mtime_ns

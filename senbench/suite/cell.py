@@ -59,6 +59,9 @@ class Cell:
     """Probability of a random action at each evaluation step."""
     precision: str = "fp32"
     """The arithmetic of the agent's network updates: fp32 or bf16."""
+    seed_batch: int = 1
+    """Frames per encoder pass: the seeds that run together in one process (and padding
+    where fewer do). Float sums of a batched pass differ from a single frame's."""
     env_options: dict[str, Any] = field(default_factory=dict)
     encoder: dict[str, Any] | None = None
     """The resolved encoder entry (architecture and sampler configs completed with their
@@ -97,8 +100,17 @@ class Cell:
         }
 
     def _precision(self) -> dict[str, Any]:
-        """fp32, the neutral value, is left out: adding the option moved no id."""
-        return {} if self.precision == "fp32" else {"precision": self.precision}
+        """fp32 and a seed batch of 1, the neutral values, are left out: adding the options
+        moved no id."""
+        return {**({} if self.precision == "fp32" else {"precision": self.precision}),
+                **({} if self.seed_batch == 1 else {"seed_batch": self.seed_batch})}
+
+    @property
+    def batch_key(self) -> str:
+        """What the seeds that may run in one batch share: the computation but the seed."""
+        curve = {k: v for k, v in self.curve().items() if k != "seed"}
+        canonical = json.dumps(curve, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(canonical.encode()).hexdigest()[:16]
 
     def _eval(self) -> dict[str, Any]:
         """The evaluation protocol. An option at its neutral value (ε = 0) is left out, so
@@ -143,7 +155,7 @@ class Cell:
             budget=config["budget"], eval_every=config["eval"]["every"],
             eval_episodes=config["eval"]["episodes"],
             eval_epsilon=config["eval"].get("epsilon", 0.0),
-            precision=config.get("precision", "fp32"),
+            precision=config.get("precision", "fp32"), seed_batch=config.get("seed_batch", 1),
             max_episode_steps=config["env"]["max_episode_steps"], threads=config["threads"],
             hyperparams=config["hyperparams"], env_options=config["env"]["options"],
             encoder=config.get("encoder"),

@@ -192,6 +192,27 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
     return cells
 
 
+def _batchable(method_name: str, method: MethodEntry, agent: Any, regs: Registries,
+               problem) -> bool:
+    """A seed batch shares an encoder's passes: it needs an encoded observation and an
+    agent that can run beside other seeds in one process."""
+    where = (("methods", method_name, "seed_batch") if method.seed_batch is not None
+             else ("seed_batch",))
+    fix = (f"set seed_batch: 1 for method '{method_name}'" if method.seed_batch is None
+           else "remove its seed_batch")
+    if method.observation != "encoded":
+        problem(where, f"seed_batch batches an encoder's passes, and method '{method_name}' "
+                f"observes {method.observation}, not encoded: {fix}")
+        return False
+    if not agent.seed_batching:
+        able = sorted(n for n in regs.agents.names() if regs.agents.get(n).seed_batching)
+        problem(where, f"agent '{agent.name}' cannot run beside other seeds in one process "
+                "(it draws from process-global random generators); agents that can: "
+                f"{', '.join(able) or 'none'}. {fix[0].upper()}{fix[1:]}")
+        return False
+    return True
+
+
 def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agent: Any,
                   env_name: str, env_spec: Any, env_entry: Any, regs: Registries,
                   problem) -> list[Cell]:
@@ -214,12 +235,15 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
                 f"{' or '.join(sorted(agent.precisions))}, not {precision}; set precision: "
                 f"fp32 for method '{method_name}'")
         return []
+    seed_batch = method.seed_batch or model.seed_batch
+    if seed_batch > 1 and not _batchable(method_name, method, agent, regs, problem):
+        return []
     defaults = agent.defaults_for(env_name, method.observation)
     common = dict(
         suite=model.name, method=method_name, env=env_name, agent=agent.name,
         observation=method.observation, budget=env_entry.budget or model.budget,
         eval_every=model.eval.every, eval_episodes=model.eval.episodes,
-        eval_epsilon=model.eval.epsilon, precision=precision,
+        eval_epsilon=model.eval.epsilon, precision=precision, seed_batch=seed_batch,
         max_episode_steps=env_entry.max_episode_steps or env_spec.max_episode_steps,
         threads=model.threads, env_options=dict(env_entry.options), pixels=pixels,
         threshold=float(env_spec.threshold if env_entry.threshold is None

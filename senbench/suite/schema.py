@@ -14,6 +14,8 @@ from senbench.encoders import EncoderRequest, Training
 
 Precision = Literal["fp32", "bf16"]
 """fp32 or bf16: how an agent's network updates compute (AgentContext.precision)."""
+SeedBatch = Annotated[int, Field(strict=True, ge=1, le=64)]
+"""Seeds per process and frames per encoder pass (senbench.run.batch)."""
 
 
 class StrictModel(BaseModel):
@@ -80,6 +82,8 @@ class MethodEntry(StrictModel):
     """Run only on these envs (default: every env of the suite)."""
     precision: Precision | None = None
     """The arithmetic of the agent's network updates (default: the suite's)."""
+    seed_batch: SeedBatch | None = None
+    """Seeds run together in one process (default: the suite's)."""
 
 
 class EvalEntry(StrictModel):
@@ -131,6 +135,12 @@ class SuiteModel(StrictModel):
     the CPU: about 1.4x faster on a CNN update where the CPU has bf16 instructions).
     Part of a cell's computation; an agent that offers no choice refuses bf16 at
     validation. bf16 changes the curves: measure its effect before relying on it."""
+    seed_batch: SeedBatch = 1
+    """How many seeds of an encoded method run together in one process, their frames
+    encoded in one batch (senbench.run.batch): faster where the encoder dominates a step
+    (SEN-SARSA). Every encoder pass takes this many frames (padded where fewer seeds run),
+    so a seed's curve does not depend on the seeds beside it; it is part of each cell's
+    computation, as threads are. 1: each seed alone."""
     pixels: PixelsEntry = PixelsEntry()
     """Frame size and stack of pixel observations, unless a method sets its own."""
     variants: dict[str, dict[str, Annotated[list[Any], Field(min_length=1)]]] = {}
