@@ -169,6 +169,7 @@ methods:
 
 @pytest.mark.parametrize(("arch", "config", "smallest", "qualifier"), [
     ("nature-cnn", "{}", 36, ""),
+    ("sen-keypoints", "{}", 16, ""),
     ("sen-resnet", "{}", 17, " with this config"),
     ("sen-resnet", "{first_stride: 1}", 9, " with this config"),
 ])
@@ -184,7 +185,8 @@ def test_an_encoder_on_frames_smaller_than_it_takes(write_suite, regs, arch, con
 
 
 @pytest.mark.parametrize(("arch", "config", "smallest"), [
-    ("nature-cnn", {}, 36), ("sen-resnet", {}, 17), ("sen-resnet", {"first_stride": 1}, 9)])
+    ("nature-cnn", {}, 36), ("sen-keypoints", {}, 16), ("sen-resnet", {}, 17),
+    ("sen-resnet", {"first_stride": 1}, 9)])
 def test_an_encoders_declared_minimum_is_what_it_builds_from(regs, arch, config, smallest):
     spec = regs.encoders.get(arch)
     assert spec.min_frame_size_for(spec.config(**config)) == smallest

@@ -38,7 +38,7 @@ def request(env="mountaincar", arch="sen-resnet", **kwargs):
     return EncoderRequest(**{**values, **kwargs})
 
 
-@pytest.mark.parametrize("arch", ["sen-resnet", "nature-cnn"])
+@pytest.mark.parametrize("arch", ["sen-resnet", "nature-cnn", "sen-keypoints"])
 @pytest.mark.parametrize("env,outputs", [("mountaincar", 2), ("pendulum", 3)])
 def test_architectures_map_frame_stacks_to_the_observation(arch, env, outputs):
     for pixels in (PixelSpec(64, 64, 2), PixelSpec(48, 80, 3)):
@@ -248,7 +248,7 @@ def test_suite_checks_encoder_settings(write_suite):
     with pytest.raises(SuiteError, match="unknown sen-resnet setting 'hiden'. Did you mean"):
         load_suite(write_suite(bad), registries())
     bad = SEN.replace("arch: sen-resnet", "arch: resnet")
-    with pytest.raises(SuiteError, match="Known encoders: nature-cnn, sen-resnet"):
+    with pytest.raises(SuiteError, match="Known encoders: nature-cnn, sen-keypoints, sen-resnet"):
         load_suite(write_suite(bad), registries())
     bad = SEN.replace("widths: [8, 8, 16, 16]", "widths: [8, 8, 16]")
     with pytest.raises(SuiteError, match="widths: List should have at least 4 items"):
@@ -403,3 +403,16 @@ def test_encoder_train_takes_the_configs_a_suite_sets_and_checks_them_the_same_w
     spec = json.loads((folder / "spec.json").read_text())
     assert spec["arch_config"]["widths"] == [4, 4, 8, 8] and spec["arch_config"]["hidden"] == 8
     assert spec["sampler_config"]["repeat"] == 2
+
+
+def test_the_keypoint_encoder_reads_where_a_bright_spot_is():
+    """Its spatial softmax returns each map's expected (x, y) in [-1, 1]: with maps that
+    peak at one place, the keypoints sit there, whatever the image's size."""
+    model = build_model(request("mountaincar", "sen-keypoints", arch_config={}), registries(),
+                        2)
+    softmax = model[1]
+    maps = torch.full((1, 3, 8, 8), -1e4)
+    maps[0, 0, 0, 7] = maps[0, 1, 7, 0] = maps[0, 2, 3, 4] = 1e4  # (row, column)
+    xs_ys = softmax(maps)[0]
+    assert torch.allclose(xs_ys[:3], torch.tensor([1.0, -1.0, 4 / 7 * 2 - 1]), atol=1e-5)
+    assert torch.allclose(xs_ys[3:], torch.tensor([-1.0, 1.0, 3 / 7 * 2 - 1]), atol=1e-5)

@@ -1,0 +1,113 @@
+"""The encoder cost frontier: held-out accuracy against inference cost, for sen-resnet at
+several widths and for sen-keypoints (a spatial-softmax keypoint head), on both envs at
+the paper's d = 20% of a 50,000-sample uniform pool (10,000 labelled frame stacks).
+
+    .venv/bin/python benchmarks/encoder_frontier.py [ENV ...]
+    (≈ 1 h on 2 idle cores the first time: 8 encoders to train; cached after)
+
+For each: held-out RMSE per state dimension (% of its range, on 5,000 independent
+frames), MFLOP per frame (torch.utils.flop_counter at batch 1), and frames/s through
+senbench's own inference path (``StateEncoder``: frozen TorchScript, one torch thread) at
+batch 1 and 32; a markdown table on stdout and docs/images/encoder-frontier.png. Encoders go
+to results/encoders (the cache `senbench run` uses), so a suite with the same spec loads
+them instead of training.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from senbench.encoders import EncoderRequest, cache_dir, complete, load_or_train
+from senbench.observe.pixels import PixelSpec
+from senbench.plugin.manager import registries
+from senbench.run.processes import set_threads
+
+CACHE = Path("results/encoders")
+FIGURE = Path("docs/images/encoder-frontier.png")
+DESIGNS = [  # (label, arch, config)
+    ("sen-resnet ×0.5", "sen-resnet", {"widths": [8, 16, 32, 32], "hidden": 128}),
+    ("sen-resnet (paper)", "sen-resnet", {}),
+    ("sen-resnet ×2", "sen-resnet", {"widths": [32, 64, 128, 128], "hidden": 512}),
+    ("sen-keypoints", "sen-keypoints", {}),
+    ("sen-keypoints ×0.5", "sen-keypoints", {"widths": [8, 16], "keypoints": 8,
+                                             "hidden": 64}),
+]
+
+
+def cost(encoder, seconds: float = 3.0) -> tuple[float, float, float]:
+    """MFLOP per frame, and frames/s at batch 1 and 32."""
+    import torch
+    from torch.utils.flop_counter import FlopCounterMode
+
+    frames = np.random.default_rng(0).integers(0, 256, (32, 2, 64, 64), dtype=np.uint8)
+    with torch.no_grad(), FlopCounterMode(display=False) as counter:
+        encoder.model(torch.as_tensor(frames[:1], dtype=torch.float32) / 255)
+    rates = []
+    for batch in (1, 32):
+        x = frames[:batch]
+        encoder(x)  # freezes its TorchScript copy
+        start, n = time.perf_counter(), 0
+        while time.perf_counter() - start < seconds:
+            encoder(x)
+            n += batch
+        rates.append(n / (time.perf_counter() - start))
+    return counter.get_total_flops() / 1e6, rates[0], rates[1]
+
+
+def main(envs: list[str]) -> None:
+    regs = registries()
+    set_threads(1)  # inference; training runs on its spec's threads
+    rows, points = [], {}
+    for env in envs:
+        for label, arch, config in DESIGNS:
+            request = complete(EncoderRequest(env, PixelSpec(), arch, "uniform", 50_000, 0.2,
+                                              arch_config=config), regs)
+            encoder = load_or_train(CACHE, request, regs, lambda m: print(m, flush=True))
+            spec = json.loads((cache_dir(CACHE, request) / "spec.json").read_text())
+            errors = {e["dimension"]: e["rmse_pct_of_range"] for e in spec["errors"]}
+            mflop, batch1, batch32 = cost(encoder)
+            points.setdefault(env, []).append((label, mflop, errors))
+            rows.append(f"| {env} | {label} | "
+                        + ", ".join(f"{k} {v:.2f}%" for k, v in errors.items())
+                        + f" | {mflop:.1f} | {batch1:,.0f} | {batch32:,.0f} | "
+                        f"{spec['train_wall_s'] / 60:.1f} min | {request.id} |")
+    print("| env | encoder | held-out RMSE (% of range) | MFLOP/frame | frames/s batch 1 "
+          "| frames/s batch 32 | training | id |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("\n".join(rows))
+    plot(points)
+
+
+def plot(points: dict[str, list[tuple[str, float, dict[str, float]]]]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(points), figsize=(6 * len(points), 4.2), squeeze=False)
+    for ax, (env, entries) in zip(axes[0], points.items(), strict=True):
+        dimensions = list(entries[0][2])
+        for dimension, marker in zip(dimensions, "osD^v", strict=False):
+            ax.scatter([e[1] for e in entries], [e[2][dimension] for e in entries],
+                       marker=marker, label=dimension)
+        for label, mflop, errors in entries:
+            ax.annotate(label, (mflop, max(errors.values())), fontsize=7,
+                        textcoords="offset points", xytext=(3, 3))
+        ax.set_xscale("log")
+        ax.set_xlabel("MFLOP per frame (batch 1)")
+        ax.set_ylabel("held-out RMSE, % of range")
+        ax.set_title(f"{env}, d = 20% (10,000 labelled frames)")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    FIGURE.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(FIGURE, dpi=120)
+    print(f"figure: {FIGURE}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:] or ["mountaincar", "pendulum"])
