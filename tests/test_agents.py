@@ -115,3 +115,26 @@ def test_the_same_seed_gives_the_same_curves(write_suite, tmp_path):
         curves.append(curves_of(tmp_path / run / "determinism"))
     assert curves[0].equals(curves[1])
     assert len(curves[0]) > 10
+
+
+@pytest.mark.parametrize(("agent_name", "observation"), [
+    ("dqn", "state"), ("dqn", "pixels"), ("ddqn", "pixels"), ("drq", "pixels")])
+def test_the_greedy_act_of_the_dqn_family_is_sb3s_deterministic_predict(agent_name,
+                                                                        observation):
+    """act() reads the Q-network directly (faster per call); it must pick what SB3's
+    predict(deterministic=True) picks, after some learning too."""
+    from senbench.observe.observations import make_env
+    from senbench.observe.pixels import PixelSpec
+
+    regs = registries()
+    env, agent = regs.envs.get("mountaincar"), regs.agents.get(agent_name)
+    config = agent.config(learning_starts=50, buffer_size=500, train_freq=4, batch_size=16)
+    pixels = PixelSpec(36, 36) if agent_name != "drq" else PixelSpec(40, 40)
+    learner = agent.make(AgentContext(config, env, lambda: make_env(
+        env, observation, 200, {}, pixels if observation == "pixels" else None), 0, 1))
+    learner.learn(300, EpisodeLog(300))
+    space = learner.model.observation_space
+    space.seed(0)
+    observations = [space.sample() for _ in range(30)]
+    ours = [learner.act(o) for o in observations]
+    assert ours == [int(learner.model.predict(o, deterministic=True)[0]) for o in observations]
