@@ -5,6 +5,9 @@ of the whole run (all seeds) divided by the encoder's rate at batch 1 (the issue
     .venv/bin/python benchmarks/seed_batch.py            (≈ 4 min on 2 idle cores)
     .venv/bin/python benchmarks/seed_batch.py --frames 2000 --seeds 3   (a quick look)
 
+It first prints the encoder's own cost per frame at batch sizes 1-8 (frozen TorchScript,
+one thread): the most a seed batch can save is on that share of a step.
+
 Each run is senbench's own path (``senbench.run.batch.execute_cells``, as a worker runs a
 batch): the paper's sen-resnet at 2x64x64, SARSA with its MountainCar defaults, 200-step
 episodes, evaluations at 0 and at the budget only. The encoder is trained on 64 labelled
@@ -62,6 +65,23 @@ def batch1_rate(encoder, seconds: float = 5.0) -> float:
     return n / (time.perf_counter() - start)
 
 
+def batch_costs(encoder, sizes=(1, 2, 3, 5, 8), seconds: float = 2.0) -> dict[int, float]:
+    """Milliseconds of encoder time per frame at each batch size (one pass of B frames ÷ B):
+    what a seed batch of B can save at most on the encoder's share of a step."""
+    frames = np.random.default_rng(0).integers(0, 256, (max(sizes), 2, 64, 64), dtype=np.uint8)
+    costs = {}
+    for size in sizes:
+        batch = frames[:size]
+        for _ in range(10):  # freezes the TorchScript copy for this shape and warms it
+            encoder(batch)
+        start, n = time.perf_counter(), 0
+        while time.perf_counter() - start < seconds:
+            encoder(batch)
+            n += 1
+        costs[size] = (time.perf_counter() - start) / n / size * 1e3
+    return costs
+
+
 def run_rate(todo, info: RunInfo) -> float:
     """Frames/s of the cells run as a worker runs them: the seeds one after another (batch
     1), or together (a seed batch)."""
@@ -88,6 +108,9 @@ def main() -> None:
         encoder = load_or_train(info.encoder_cache, first.encoder_request(), registries())
         base = batch1_rate(encoder)
         print(f"sen-resnet, 2x64x64, one thread: {base:,.0f} frames/s at batch 1")
+        costs = batch_costs(encoder)
+        print("encoder ms per frame by batch size: " + ", ".join(
+            f"{size}: {ms:.2f} ({costs[1] / ms:.2f}x)" for size, ms in costs.items()))
         print(f"{'seeds':>5}  {'seed_batch':>10}  {'frames/s':>9}  {'÷ batch-1 rate':>14}  "
               f"{'vs alone':>8}")
         for seeds in args.seeds:

@@ -43,6 +43,20 @@ def test_an_agent_without_bf16_is_refused_where_precision_is_set(write_suite):
     assert "dqn" not in text  # dqn offers bf16
 
 
+def test_bf16_on_a_cpu_without_bf16_instructions_is_refused_at_its_line(write_suite,
+                                                                         monkeypatch):
+    import senbench.suite.expand as expand
+
+    monkeypatch.setattr(expand, "bf16_native", lambda: False)
+    with pytest.raises(SuiteError) as error:
+        load_suite(write_suite(SUITE), registries())
+    text = str(error.value)
+    assert "methods.dqn-bf16.precision" in text and "no bf16 instructions" in text
+    assert "set precision: fp32" in text
+    monkeypatch.setattr(expand, "bf16_native", lambda: True)
+    assert len(load_suite(write_suite(SUITE), registries()).cells) == 2
+
+
 def test_bf16_runs_the_updates_under_autocast_and_fp32_is_the_class_itself(monkeypatch):
     seen = []
     monkeypatch.setattr(DQN, "train", lambda self, *a, **k: seen.append(

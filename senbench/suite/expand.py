@@ -192,6 +192,13 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
     return cells
 
 
+def bf16_native() -> bool:
+    """Whether this machine's CPU computes bf16 natively (oneDNN's own check)."""
+    import torch
+
+    return bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
+
+
 def _batchable(method_name: str, method: MethodEntry, agent: Any, regs: Registries,
                problem) -> bool:
     """A seed batch shares an encoder's passes: it needs an encoded observation and an
@@ -234,6 +241,13 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
                 else ("precision",), f"agent '{agent.name}' computes in "
                 f"{' or '.join(sorted(agent.precisions))}, not {precision}; set precision: "
                 f"fp32 for method '{method_name}'")
+        return []
+    if precision == "bf16" and not bf16_native():
+        problem(("methods", method_name, "precision") if method.precision is not None
+                else ("precision",), "this machine's CPU has no bf16 instructions (torch "
+                "reports no native bf16 support), so bf16 would run emulated and slower "
+                "than fp32; set precision: fp32, or run the suite on a CPU with AVX512-BF16 "
+                "or AMX")
         return []
     seed_batch = method.seed_batch or model.seed_batch
     if seed_batch > 1 and not _batchable(method_name, method, agent, regs, problem):
