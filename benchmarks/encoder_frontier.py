@@ -2,7 +2,7 @@
 several widths and for sen-keypoints (a spatial-softmax keypoint head), on both envs at
 the paper's d = 20% of a 50,000-sample uniform pool (10,000 labelled frame stacks).
 
-    .venv/bin/python benchmarks/encoder_frontier.py [ENV ...]
+    .venv/bin/python benchmarks/encoder_frontier.py [ENV ...] [--train-only]
     (≈ 1 h on 2 idle cores the first time: 8 encoders to train; cached after)
 
 For each: held-out RMSE per state dimension (% of its range, on 5,000 independent
@@ -10,7 +10,8 @@ frames), MFLOP per frame (torch.utils.flop_counter at batch 1), and frames/s thr
 senbench's own inference path (``StateEncoder``: frozen TorchScript, one torch thread) at
 batch 1 and 32; a markdown table on stdout and docs/images/encoder-frontier.png. Encoders go
 to results/encoders (the cache `senbench run` uses), so a suite with the same spec loads
-them instead of training.
+them instead of training, and a second run only measures. ``--train-only`` trains them
+and stops: training may share the machine; the speed columns want it idle.
 """
 
 from __future__ import annotations
@@ -29,13 +30,13 @@ from senbench.run.processes import set_threads
 
 CACHE = Path("results/encoders")
 FIGURE = Path("docs/images/encoder-frontier.png")
-DESIGNS = [  # (label, arch, config)
+DESIGNS = [  # (label, arch, config), cheapest to train first
+    ("sen-keypoints ×0.5", "sen-keypoints", {"widths": [8, 16], "keypoints": 8,
+                                             "hidden": 64}),
+    ("sen-keypoints", "sen-keypoints", {}),
     ("sen-resnet ×0.5", "sen-resnet", {"widths": [8, 16, 32, 32], "hidden": 128}),
     ("sen-resnet (paper)", "sen-resnet", {}),
     ("sen-resnet ×2", "sen-resnet", {"widths": [32, 64, 128, 128], "hidden": 512}),
-    ("sen-keypoints", "sen-keypoints", {}),
-    ("sen-keypoints ×0.5", "sen-keypoints", {"widths": [8, 16], "keypoints": 8,
-                                             "hidden": 64}),
 ]
 
 
@@ -59,15 +60,22 @@ def cost(encoder, seconds: float = 3.0) -> tuple[float, float, float]:
     return counter.get_total_flops() / 1e6, rates[0], rates[1]
 
 
-def main(envs: list[str]) -> None:
+def main(envs: list[str], train_only: bool = False) -> None:
     regs = registries()
-    set_threads(1)  # inference; training runs on its spec's threads
-    rows, points = [], {}
-    for env in envs:
-        for label, arch, config in DESIGNS:
+    encoders = {}
+    for label, arch, config in DESIGNS:  # train (or load) them all first, cheapest first
+        for env in envs:
             request = complete(EncoderRequest(env, PixelSpec(), arch, "uniform", 50_000, 0.2,
                                               arch_config=config), regs)
             encoder = load_or_train(CACHE, request, regs, lambda m: print(m, flush=True))
+            encoders[env, label] = request, encoder
+    if train_only:
+        return
+    set_threads(1)  # inference; training ran on its spec's threads
+    rows, points = [], {}
+    for env in envs:
+        for label, _, _ in DESIGNS:
+            request, encoder = encoders[env, label]
             spec = json.loads((cache_dir(CACHE, request) / "spec.json").read_text())
             errors = {e["dimension"]: e["rmse_pct_of_range"] for e in spec["errors"]}
             mflop, batch1, batch32 = cost(encoder)
@@ -110,4 +118,5 @@ def plot(points: dict[str, list[tuple[str, float, dict[str, float]]]]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:] or ["mountaincar", "pendulum"])
+    args = [a for a in sys.argv[1:] if a != "--train-only"]
+    main(args or ["mountaincar", "pendulum"], train_only="--train-only" in sys.argv[1:])

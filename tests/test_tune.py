@@ -293,3 +293,37 @@ def test_what_a_tune_of_several_methods_refuses_before_it_runs(tmp_path):
         tuning.tune_targets(suite, ["ppo-state"], None, regs, named_study=False, export=True)
     with pytest.raises(tuning.SuiteError, match="--method sarsa: not a method"):
         tuning.tune_targets(suite, ["sarsa"], None, regs, named_study=False, export=False)
+
+
+def test_train_return_ranks_trials_whose_evaluations_all_score_the_same(tmp_path):
+    """Two trials whose greedy evaluations are all -1,000 tie on auc; the mean return of
+    their training episodes tells them apart. A trial with no training episode has none."""
+    import json
+
+    from senbench.results.store import write_cell
+
+    def trial(name, episode_returns):
+        directory = tmp_path / name / "cells"
+        directory.mkdir(parents=True)
+        ids = []
+        for seed, returns in enumerate(episode_returns):
+            cell_id = f"{name}{seed:015d}"
+            ids.append(cell_id)
+            common = {"cell_id": cell_id, "suite": name, "env": "mountaincar", "method": "m",
+                      "variant": "", "seed": seed, "threshold": -110.0, "budget": 2000}
+            rows = [{**common, "kind": "eval", "step": step, "return": -1000.0}
+                    for step in (0, 1000, 2000)]
+            rows += [{**common, "kind": "episode", "step": 100 * (i + 1), "return": r}
+                     for i, r in enumerate(returns)]
+            rows.append({**common, "kind": "cell", "status": "ok", "cell_wall_s": 1.0})
+            write_cell(directory, cell_id, rows)
+        (tmp_path / name / "cells.json").write_text(json.dumps({"cells": ids}))
+        return tmp_path / name
+
+    stuck = trial("stuck", [[-1000.0, -1000.0], [-1000.0]])
+    learning = trial("learning", [[-1000.0, -300.0], [-200.0, -400.0]])
+    assert tuning.objective_value(stuck, "auc") == tuning.objective_value(learning, "auc")
+    assert tuning.objective_value(stuck, "train-return") == -1000.0
+    assert tuning.objective_value(learning, "train-return") == (-650.0 + -300.0) / 2
+    with pytest.raises(RuntimeError, match="no seed of the trial has a train-return"):
+        tuning.objective_value(trial("none", [[], []]), "train-return")

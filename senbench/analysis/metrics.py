@@ -46,10 +46,13 @@ def auc(steps: np.ndarray, returns: np.ndarray) -> float:
 
 
 def cell_metrics(results: pd.DataFrame) -> pd.DataFrame:
-    """One row per cell: identity, status, and the three metrics of its evaluation curve."""
+    """One row per cell: identity, status, the three metrics of its evaluation curve, and
+    the mean return of its training episodes (``train_return``)."""
     cells = results[results["kind"] == "cell"]
     evals = results[results["kind"] == "eval"].sort_values("step")
     curves = dict(list(evals.groupby(["suite", "cell_id"])))
+    episodes = results[results["kind"] == "episode"]
+    training = episodes.groupby(["suite", "cell_id"])["return"].mean().to_dict()
     rows = []
     for _, cell in cells.iterrows():
         cell_id = cell["cell_id"]
@@ -66,6 +69,9 @@ def cell_metrics(results: pd.DataFrame) -> pd.DataFrame:
             "steps_to_threshold": steps_to_threshold(steps, returns, cell["threshold"])
             if ok else np.nan,
             "auc": auc(steps, returns) if ok else np.nan,
+            # what the agent earned while learning, exploration included
+            "train_return": float(training.get((cell["suite"], cell_id), np.nan))
+            if ok else np.nan,
             "wall_s": cell["cell_wall_s"],
         })
     frame = pd.DataFrame(rows)

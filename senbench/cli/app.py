@@ -220,7 +220,8 @@ def tune(
                                             "method runs on, one study each).")] = None,
     seeds: Annotated[int, typer.Option(min=1, help="Seeds per trial, run at once.")] = 3,
     objective: Annotated[str, typer.Option(
-        help="auc, final or steps-to-threshold (mean over the trial's seeds).")] = "auc",
+        help="auc, final, steps-to-threshold (of the evaluation curve) or train-return "
+        "(mean return of the training episodes); the mean over the trial's seeds.")] = "auc",
     storage: Annotated[str | None, typer.Option(
         help="Optuna storage URL (default: sqlite:///RESULTS/<suite>/tune.db).")] = None,
     study: Annotated[str | None, typer.Option(

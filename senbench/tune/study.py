@@ -5,8 +5,9 @@ A trial is the method on one env with hyperparameters drawn from its agent's dec
 K seeds at once, one process each, exactly as ``senbench run`` runs cells. As the seeds
 evaluate, the mean of their evaluation returns at each evaluation frame goes to the pruner,
 which can stop the trial there (its cells are killed). The objective, once every seed has
-finished, is the mean over seeds of the chosen metric: AUC, final return, or frames to
-threshold (a seed that never reaches it counts as the budget).
+finished, is the mean over seeds of the chosen metric: AUC, final return, frames to
+threshold (a seed that never reaches it counts as the budget), or the mean return of the
+training episodes.
 
 Tuning seeds are 1,000,000 + i, apart from any suite's own seeds, so that a method is not
 tuned on the seeds it is then reported on.
@@ -47,7 +48,12 @@ from senbench.suite import Cell, Suite
 TUNE_SEED_OFFSET = 1_000_000
 ENCODER = "encoder."
 """Prefix of the encoder architecture's parameters in a study."""
-OBJECTIVES = {"auc": "maximize", "final": "maximize", "steps-to-threshold": "minimize"}
+OBJECTIVES = {"auc": "maximize", "final": "maximize", "steps-to-threshold": "minimize",
+              "train-return": "maximize"}
+"""train-return: the mean return of the trial's training episodes, exploration included. It
+has signal where every evaluation of a short trial scores the same (a greedy pixel DQN on
+MountainCar plays one action from the start states and scores -1,000 for 100k frames and
+more while its training episodes reach the flag: REPRODUCTION.md, Positive controls)."""
 HEARTBEAT_S = 30
 GRACE_S = 90
 
@@ -239,9 +245,13 @@ def objective_value(directory: Path, objective: str) -> float:
     failed = cells[cells["status"] != "ok"]
     if len(failed):
         raise RuntimeError(f"{len(failed)} of the trial's cells failed; see {directory}")
-    column = {"auc": "auc", "final": "final_return",
-              "steps-to-threshold": "steps_to_threshold"}[objective]
-    return float(np.nanmean(cells[column].to_numpy(dtype=float)))
+    column = {"auc": "auc", "final": "final_return", "steps-to-threshold": "steps_to_threshold",
+              "train-return": "train_return"}[objective]
+    values = cells[column].to_numpy(dtype=float)
+    if np.isnan(values).all():
+        raise RuntimeError(f"no seed of the trial has a {objective} (no training episode "
+                           f"ended within its frames?); see {directory}")
+    return float(np.nanmean(values))
 
 
 def storage_for(url: str | None, default_file: Path) -> Any:
