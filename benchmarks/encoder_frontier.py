@@ -2,7 +2,7 @@
 several widths and for sen-keypoints (a spatial-softmax keypoint head), on both envs at
 the paper's d = 20% of a 50,000-sample uniform pool (10,000 labelled frame stacks).
 
-    .venv/bin/python benchmarks/encoder_frontier.py [ENV ...] [--train-only]
+    .venv/bin/python benchmarks/encoder_frontier.py [ENV ...] [--train-only | --measure-only]
     (≈ 1 h on 2 idle cores the first time: 8 encoders to train; cached after)
 
 For each: held-out RMSE per state dimension (% of its range, on 5,000 independent
@@ -12,6 +12,7 @@ batch 1 and 32; a markdown table on stdout and docs/images/encoder-frontier.png.
 to results/encoders (the cache `senbench run` uses), so a suite with the same spec loads
 them instead of training, and a second run only measures. ``--train-only`` trains them
 and stops: training may share the machine; the speed columns want it idle.
+``--measure-only`` measures the encoders trained so far and leaves out the rest.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from senbench.encoders import EncoderRequest, cache_dir, complete, load_or_train
+from senbench.encoders import EncoderRequest, cache_dir, complete, load, load_or_train
 from senbench.observe.pixels import PixelSpec
 from senbench.plugin.manager import registries
 from senbench.run.processes import set_threads
@@ -60,21 +61,27 @@ def cost(encoder, seconds: float = 3.0) -> tuple[float, float, float]:
     return counter.get_total_flops() / 1e6, rates[0], rates[1]
 
 
-def main(envs: list[str], train_only: bool = False) -> None:
+def main(envs: list[str], mode: str = "") -> None:
+    """``--train-only``: train (or find) every encoder and stop; ``--measure-only``: measure
+    the encoders already trained, leaving out the others; neither: both."""
     regs = registries()
     encoders = {}
     for label, arch, config in DESIGNS:  # train (or load) them all first, cheapest first
         for env in envs:
             request = complete(EncoderRequest(env, PixelSpec(), arch, "uniform", 50_000, 0.2,
                                               arch_config=config), regs)
-            encoder = load_or_train(CACHE, request, regs, lambda m: print(m, flush=True))
-            encoders[env, label] = request, encoder
-    if train_only:
+            encoder = (load(CACHE, request, regs) if mode == "--measure-only" else
+                       load_or_train(CACHE, request, regs, lambda m: print(m, flush=True)))
+            if encoder is None:
+                print(f"{env} {label}: not trained yet, left out")
+            else:
+                encoders[env, label] = request, encoder
+    if mode == "--train-only":
         return
     set_threads(1)  # inference; training ran on its spec's threads
     rows, points = [], {}
     for env in envs:
-        for label, _, _ in DESIGNS:
+        for label in [label for label, _, _ in DESIGNS if (env, label) in encoders]:
             request, encoder = encoders[env, label]
             spec = json.loads((cache_dir(CACHE, request) / "spec.json").read_text())
             errors = {e["dimension"]: e["rmse_pct_of_range"] for e in spec["errors"]}
@@ -118,5 +125,6 @@ def plot(points: dict[str, list[tuple[str, float, dict[str, float]]]]) -> None:
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "--train-only"]
-    main(args or ["mountaincar", "pendulum"], train_only="--train-only" in sys.argv[1:])
+    modes = [a for a in sys.argv[1:] if a in ("--train-only", "--measure-only")]
+    main([a for a in sys.argv[1:] if a not in modes] or ["mountaincar", "pendulum"],
+         modes[0] if modes else "")
