@@ -10,14 +10,15 @@ A convolutional net in eval mode computes each frame of a batch from that frame 
 arithmetic that depends on the batch size only, so a seed's encoded observations — and its
 curve — are bitwise the same whichever seeds it runs beside and in whichever slot
 (``tests/test_seed_batch.py`` checks it). Between batch sizes the outputs differ by float
-rounding (≤ 2e-7 of the normalised output, measured on sen-resnet), which a tile boundary
-can turn into another action and so another curve: B is part of a cell's computation (its
-id, config and ``seed_batch`` column), as the torch thread count is.
+rounding (≤ 1.2e-7 of the normalised output, batch 2-8 against 1, measured on sen-resnet),
+which a tile boundary can turn into another action and so another curve: B is part of a
+cell's computation (its id, config and ``seed_batch`` column), as the torch thread count is.
 
 Only agents whose spec sets ``seed_batching`` run this way: they draw from no process-global
 random generator, which threads would share. The seeds' Python code takes turns on the GIL;
-what a batch buys is the encoder's throughput at batch B against B passes of one frame
-(``benchmarks/seed_batch.py``).
+what a batch buys is the encoder's throughput at batch B against B passes of one frame,
+which on the project's machine did not pay for the batch's hand-offs
+(``benchmarks/seed_batch.py``, docs/benchmarks.md).
 
 Failure stays per seed: a seed whose agent raises is recorded failed by its own cell (as
 alone) and leaves the barrier, so the others go on; a pass that raises fails the seeds that
@@ -43,6 +44,7 @@ from senbench.run.execute import (
     execute_cell,
     lost_cell,
     record_lost_cell,
+    reset_peak_rss,
 )
 from senbench.suite import Cell
 
@@ -156,6 +158,7 @@ def execute_cells(cells: list[Cell], info: RunInfo, progress: ProgressCallback |
         for cell, result in zip(cells, results, strict=True):
             done(cell, result)
         return results
+    reset_peak_rss()  # the batch's peak, not the process's (it may have trained encoders)
     shared = SharedEncoder(encoder, size, len(cells))
     results: list[Result | None] = [None] * len(cells)
     one_at_a_time = threading.Lock()  # the seeds report down one pipe, to one display
@@ -166,6 +169,8 @@ def execute_cells(cells: list[Cell], info: RunInfo, progress: ProgressCallback |
             with one_at_a_time:
                 report(*args)
 
+    raised: list[BaseException] = []  # by ``done``: the caller's, raised again below
+
     def run(slot: int, cell: Cell) -> None:
         try:
             with shared.seat(slot):
@@ -173,7 +178,10 @@ def execute_cells(cells: list[Cell], info: RunInfo, progress: ProgressCallback |
         except BaseException as exc:  # noqa: BLE001 - outside the agent: this seed only
             results[slot] = lost_cell(cell, info, f"crashed in its seed batch: {exc!r}")
         with one_at_a_time:
-            done(cell, results[slot])
+            try:
+                done(cell, results[slot])
+            except BaseException as exc:  # noqa: BLE001 - handed to the calling thread
+                raised.append(exc)
 
     threads = [threading.Thread(target=run, args=(slot, cell), daemon=True,
                                 name=f"senbench-seed-{cell.seed}")
@@ -182,6 +190,8 @@ def execute_cells(cells: list[Cell], info: RunInfo, progress: ProgressCallback |
         thread.start()
     for thread in threads:
         thread.join()
+    if raised:
+        raise raised[0]
     return [r for r in results if r is not None]
 
 
@@ -192,15 +202,26 @@ def run_cells(cells: list[Cell], directory: Path, info: RunInfo,
     """Run cells (one, or the seeds of one batch) and write each one's result file as soon
     as it finishes; ``written`` is called with its outcome once it is."""
     outcomes: list[CellOutcome] = []
+    interrupted, writing = threading.Event(), threading.Lock()
 
     def write(cell: Cell, result: Result) -> None:
-        rows, outcome = result
-        try:
-            write_cell(directory, cell.id, rows)
-        except Exception as exc:  # as a cell that cannot write its result
-            outcome = record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
-        outcomes.append(outcome)
-        written(outcome)
+        with writing:
+            if interrupted.is_set():  # the run stopped: an interrupted cell writes nothing
+                return
+            rows, outcome = result
+            try:
+                write_cell(directory, cell.id, rows)
+            except Exception as exc:  # as a cell that cannot write its result
+                outcome = record_lost_cell(cell, directory, info, f"crashed: {exc!r}")
+            outcomes.append(outcome)
+            written(outcome)
 
-    execute_cells(cells, info, progress, write)
+    try:
+        execute_cells(cells, info, progress, write)
+    except KeyboardInterrupt:
+        # The seeds' threads (daemons) go on until the process ends; what they finish
+        # from now on is dropped, as the cells of an interrupted run are.
+        with writing:
+            interrupted.set()
+        raise
     return outcomes

@@ -84,11 +84,12 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
 
     ``encoder``: a state encoder the seeds of a batch share (senbench.run.batch), the cell
     running in a thread beside them: the process-wide generators are then left unseeded (a
-    batching agent draws from none) and the peak memory is the batch's."""
+    batching agent draws from none) and the peak memory is the batch's (reset once, by
+    the batch)."""
     started = datetime.now(UTC)
     alone = encoder is None
     if alone:
-        _reset_peak_rss()
+        reset_peak_rss()
     recorder: CellRecorder | None = None
     status, error = "ok", None
     try:
@@ -162,7 +163,7 @@ def _seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
-def _reset_peak_rss() -> None:
+def reset_peak_rss() -> None:
     """Linux lets a process reset its high-water mark, so the peak is per cell even when a
     worker process runs many cells."""
     try:

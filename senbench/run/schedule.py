@@ -104,8 +104,9 @@ class Schedule:
     def next_batch(self) -> list[Cell]:
         """The cells to start now in one process: the next cell, and, if it runs in a seed
         batch, waiting seeds of its batch key up to the batch's size (empty: none to
-        start). The seeds of a batch take as long together as one alone, so the next
-        cell's fit under a time limit is theirs."""
+        start). The seeds of a batch finish together and each records the batch's wall time,
+        so the next cell's fit under a time limit is theirs. An estimate made only from a
+        partial batch (fewer seeds, padded) is low for a full one."""
         first = self.next()
         if first is None:
             return []

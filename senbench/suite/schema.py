@@ -137,8 +137,10 @@ class SuiteModel(StrictModel):
     validation. bf16 changes the curves: measure its effect before relying on it."""
     seed_batch: SeedBatch = 1
     """How many seeds of an encoded method run together in one process, their frames
-    encoded in one batch (senbench.run.batch): faster where the encoder dominates a step
-    (SEN-SARSA). Every encoder pass takes this many frames (padded where fewer seeds run),
+    encoded in one batch (senbench.run.batch): faster only where the encoder's batched
+    pass is much cheaper per frame than its pass of one, which it was not for sen-resnet on
+    the project's 2-core machine (SEN-SARSA ran 0.7x as fast batched: docs/benchmarks.md).
+    Every encoder pass takes this many frames (padded where fewer seeds run),
     so a seed's curve does not depend on the seeds beside it; it is part of each cell's
     computation, as threads are. 1: each seed alone."""
     pixels: PixelsEntry = PixelsEntry()
