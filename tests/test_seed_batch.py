@@ -183,6 +183,17 @@ eval: {every: 100, episodes: 1}
     text = str(error.value)
     assert "methods.sen-ppo.seed_batch" in text and "agent 'ppo' cannot run beside" in text
     assert "agents that can: sarsa" in text
+    both = ppo.replace("seeds: [0, 1]", "seeds: [0, 1]\nseed_batch: 2")
+    with pytest.raises(SuiteError) as error:  # removing the method's own would not do
+        load_suite(write_suite(both), registries())
+    assert "Set seed_batch: 1 for method 'sen-ppo'" in str(error.value)
+
+
+def test_a_seed_batch_larger_than_the_seeds_is_refused(write_suite):
+    with pytest.raises(SuiteError) as error:
+        load_suite(write_suite(SUITE.replace("seed_batch: 3", "seed_batch: 8")), registries())
+    assert ("seed_batch 8 is more than the suite's 3 seeds: every pass would encode 5 blank "
+            "frames; set seed_batch to at most 3") in str(error.value)
 
 
 def test_a_failure_of_the_callers_writer_reaches_the_caller(write_suite, tmp_path,

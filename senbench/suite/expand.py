@@ -21,6 +21,7 @@ from senbench.observe.pixels import PixelSpec
 from senbench.plugin.registry import Registries
 from senbench.suite.cell import Cell
 from senbench.suite.resolve import (
+    check_batchable,
     check_capabilities,
     fits,
     resolve_config,
@@ -199,27 +200,6 @@ def bf16_native() -> bool:
     return bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
 
 
-def _batchable(method_name: str, method: MethodEntry, agent: Any, regs: Registries,
-               problem) -> bool:
-    """A seed batch shares an encoder's passes: it needs an encoded observation and an
-    agent that can run beside other seeds in one process."""
-    where = (("methods", method_name, "seed_batch") if method.seed_batch is not None
-             else ("seed_batch",))
-    fix = (f"set seed_batch: 1 for method '{method_name}'" if method.seed_batch is None
-           else "remove its seed_batch")
-    if method.observation != "encoded":
-        problem(where, f"seed_batch batches an encoder's passes, and method '{method_name}' "
-                f"observes {method.observation}, not encoded: {fix}")
-        return False
-    if not agent.seed_batching:
-        able = sorted(n for n in regs.agents.names() if regs.agents.get(n).seed_batching)
-        problem(where, f"agent '{agent.name}' cannot run beside other seeds in one process "
-                "(it draws from process-global random generators); agents that can: "
-                f"{', '.join(able) or 'none'}. {fix[0].upper()}{fix[1:]}")
-        return False
-    return True
-
-
 def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agent: Any,
                   env_name: str, env_spec: Any, env_entry: Any, regs: Registries,
                   problem) -> list[Cell]:
@@ -250,7 +230,8 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
                 "or AMX")
         return []
     seed_batch = method.seed_batch or model.seed_batch
-    if seed_batch > 1 and not _batchable(method_name, method, agent, regs, problem):
+    if seed_batch > 1 and not check_batchable(method_name, method, seed_batch, model,
+                                              agent, regs, problem):
         return []
     defaults = agent.defaults_for(env_name, method.observation)
     common = dict(
