@@ -23,6 +23,15 @@ eval: {every: 100, episodes: 1}
 """
 
 
+@pytest.fixture(autouse=True)
+def any_cpu_runs_bf16(monkeypatch):
+    """These tests check what bf16 does, on any CPU (emulated where it has no bf16
+    instructions); the refusal of such a CPU is tested on its own below."""
+    import senbench.suite.expand as expand
+
+    monkeypatch.setattr(expand, "bf16_native", lambda: True)
+
+
 def test_fp32_is_left_out_of_the_id_and_bf16_is_in_it(write_suite):
     cells = {c.method: c for c in load_suite(write_suite(SUITE), registries()).cells}
     fp32, bf16 = cells["dqn-state"], cells["dqn-bf16"]
