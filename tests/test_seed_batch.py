@@ -189,13 +189,6 @@ eval: {every: 100, episodes: 1}
     assert "Set seed_batch: 1 for method 'sen-ppo'" in str(error.value)
 
 
-def test_a_seed_batch_larger_than_the_seeds_is_refused(write_suite):
-    with pytest.raises(SuiteError) as error:
-        load_suite(write_suite(SUITE.replace("seed_batch: 3", "seed_batch: 8")), registries())
-    assert ("seed_batch 8 is more than the suite's 3 seeds: every pass would encode 5 blank "
-            "frames; set seed_batch to at most 3") in str(error.value)
-
-
 def test_a_failure_of_the_callers_writer_reaches_the_caller(write_suite, tmp_path,
                                                            monkeypatch):
     """A seed's ``done`` that raises (its result cannot be written nor recorded) is raised

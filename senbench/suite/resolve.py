@@ -225,7 +225,7 @@ def _check_sampler(regs: Registries, name: str, env_name: str, offers: frozenset
 def check_batchable(method_name: str, method: Any, seed_batch: int, model: Any, agent: Any,
                     regs: Registries, problem) -> bool:
     """A seed batch shares an encoder's passes: it needs an encoded observation, an agent
-    that can run beside other seeds in one process, and no more slots than seeds."""
+    that can run beside other seeds in one process (fewer seeds than B run padded)."""
     where = (("methods", method_name, "seed_batch") if method.seed_batch is not None
              else ("seed_batch",))
     fix = (f"set seed_batch: 1 for method '{method_name}'"
@@ -239,11 +239,5 @@ def check_batchable(method_name: str, method: Any, seed_batch: int, model: Any, 
         problem(where, f"agent '{agent.name}' cannot run beside other seeds in one process "
                 "(it draws from process-global random generators); agents that can: "
                 f"{', '.join(able) or 'none'}. {fix[0].upper()}{fix[1:]}")
-        return False
-    if seed_batch > len(model.seeds):
-        problem(where, f"seed_batch {seed_batch} is more than the suite's "
-                f"{len(model.seeds)} seeds: every pass would encode "
-                f"{seed_batch - len(model.seeds)} blank frames; set seed_batch to at most "
-                f"{len(model.seeds)}")
         return False
     return True
