@@ -19,10 +19,9 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 from pathlib import Path
 
-import numpy as np
+from seed_batch import batch_costs
 
 from senbench.encoders import EncoderRequest, cache_dir, complete, load, load_or_train
 from senbench.observe.pixels import PixelSpec
@@ -46,19 +45,10 @@ def cost(encoder, seconds: float = 3.0) -> tuple[float, float, float]:
     import torch
     from torch.utils.flop_counter import FlopCounterMode
 
-    frames = np.random.default_rng(0).integers(0, 256, (32, 2, 64, 64), dtype=np.uint8)
     with torch.no_grad(), FlopCounterMode(display=False) as counter:
-        encoder.model(torch.as_tensor(frames[:1], dtype=torch.float32) / 255)
-    rates = []
-    for batch in (1, 32):
-        x = frames[:batch]
-        encoder(x)  # freezes its TorchScript copy
-        start, n = time.perf_counter(), 0
-        while time.perf_counter() - start < seconds:
-            encoder(x)
-            n += batch
-        rates.append(n / (time.perf_counter() - start))
-    return counter.get_total_flops() / 1e6, rates[0], rates[1]
+        encoder.model(torch.zeros((1, 2, 64, 64), dtype=torch.float32))
+    ms = batch_costs(encoder, (1, 32), seconds)
+    return counter.get_total_flops() / 1e6, 1e3 / ms[1], 1e3 / ms[32]
 
 
 def main(envs: list[str], mode: str = "") -> None:

@@ -56,18 +56,13 @@ def cells(folder: Path, seeds: int, batch: int, frames: int):
 
 
 def batch1_rate(encoder, seconds: float = 5.0) -> float:
-    frames = np.random.default_rng(0).integers(0, 256, (1, 2, 64, 64), dtype=np.uint8)
-    encoder(frames)  # freezes the TorchScript copy
-    start, n = time.perf_counter(), 0
-    while time.perf_counter() - start < seconds:
-        encoder(frames)
-        n += 1
-    return n / (time.perf_counter() - start)
+    return 1e3 / batch_costs(encoder, (1,), seconds)[1]
 
 
 def batch_costs(encoder, sizes=(1, 2, 3, 5, 8), seconds: float = 2.0) -> dict[int, float]:
-    """Milliseconds of encoder time per frame at each batch size (one pass of B frames ÷ B):
-    what a seed batch of B can save at most on the encoder's share of a step."""
+    """Milliseconds of encoder time per frame at each batch size (one pass of B frames ÷ B),
+    on random 2x64x64 frames: what a seed batch of B can save at most on the encoder's
+    share of a step."""
     frames = np.random.default_rng(0).integers(0, 256, (max(sizes), 2, 64, 64), dtype=np.uint8)
     costs = {}
     for size in sizes:

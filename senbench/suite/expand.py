@@ -216,22 +216,22 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
                       else ("pixels",) if "pixels" in model.model_fields_set
                       else ("methods", method_name, "observation"))
     precision = method.precision or model.precision
+    precision_at: Loc = (("methods", method_name, "precision") if method.precision is not None
+                         else ("precision",))
     if precision not in agent.precisions:
-        problem(("methods", method_name, "precision") if method.precision is not None
-                else ("precision",), f"agent '{agent.name}' computes in "
+        problem(precision_at, f"agent '{agent.name}' computes in "
                 f"{' or '.join(sorted(agent.precisions))}, not {precision}; set precision: "
                 f"fp32 for method '{method_name}'")
         return []
     if precision == "bf16" and not bf16_native():
-        problem(("methods", method_name, "precision") if method.precision is not None
-                else ("precision",), "this machine's CPU has no bf16 instructions (torch "
+        problem(precision_at, "this machine's CPU has no bf16 instructions (torch "
                 "reports no native bf16 support), so bf16 would run emulated and slower "
                 "than fp32; set precision: fp32, or run the suite on a CPU with AVX512-BF16 "
                 "or AMX")
         return []
     seed_batch = method.seed_batch or model.seed_batch
-    if seed_batch > 1 and not check_batchable(method_name, method, seed_batch, model,
-                                              agent, regs, problem):
+    if seed_batch > 1 and not check_batchable(method_name, method, model, agent, regs,
+                                              problem):
         return []
     defaults = agent.defaults_for(env_name, method.observation)
     common = dict(

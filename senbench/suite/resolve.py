@@ -222,9 +222,9 @@ def _check_sampler(regs: Registries, name: str, env_name: str, offers: frozenset
                 f"(renderer: gymnasium); use renderer: auto, or {instead}")
 
 
-def check_batchable(method_name: str, method: Any, seed_batch: int, model: Any, agent: Any,
-                    regs: Registries, problem) -> bool:
-    """A seed batch shares an encoder's passes: it needs an encoded observation, an agent
+def check_batchable(method_name: str, method: Any, model: Any, agent: Any, regs: Registries,
+                    problem) -> bool:
+    """A seed batch shares an encoder's passes: it needs an encoded observation and an agent
     that can run beside other seeds in one process (fewer seeds than B run padded)."""
     where = (("methods", method_name, "seed_batch") if method.seed_batch is not None
              else ("seed_batch",))
