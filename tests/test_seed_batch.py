@@ -2,19 +2,24 @@
 seed's curve is bitwise the one it has beside any other seeds, or none; one seed that
 raises fails alone; the option is refused where it cannot apply."""
 
+import dataclasses
 import shutil
+import sys
 import threading
 
 import numpy as np
 import pytest
 from suites_for_tests import SEN_SARSA
 
+import senbench
 from senbench.errors import SuiteError
+from senbench.plugin import manager as plugins
 from senbench.plugin.manager import registries
 from senbench.results.store import read_results
 from senbench.run.batch import SharedEncoder
 from senbench.run.runner import run_suite
 from senbench.suite import load_suite
+from senbench_encoders.sen_resnet import SEN_RESNET
 
 SUITE = f"""\
 name: batched
@@ -209,3 +214,29 @@ def test_a_failure_of_the_callers_writer_reaches_the_caller(write_suite, tmp_pat
     with pytest.raises(OSError, match="disk full on purpose"):
         batch.execute_cells(cells, RunInfo.gather(tmp_path / "encoders"), None, done)
     assert sorted(finished) == sorted(c.seed for c in cells)  # the other seed still ran
+
+
+@senbench.hookimpl
+def register_encoders(register):
+    """sen-resnet under another name, declaring nothing about its batches."""
+    register(dataclasses.replace(SEN_RESNET, name="undeclared",
+                                 batch_independent=False))
+
+
+def test_seed_batch_is_refused_for_an_encoder_that_may_mix_its_batch(write_suite):
+    module = sys.modules[__name__]
+    plugins.register_plugin(module, distribution="senbench-batch-tests", version="0")
+    try:
+        text = SUITE.replace("    encoder:\n", "    encoder:\n      arch: undeclared\n")
+        assert "arch: undeclared" in text
+        with pytest.raises(SuiteError) as error:
+            load_suite(write_suite(text), plugins.registries())
+        assert ("seed_batch encodes several seeds' frames in one pass, and encoder "
+                "'undeclared' does not declare that a frame's output is independent of its "
+                "batch (EncoderSpec.batch_independent); set seed_batch: 1 for method "
+                "'sen-sarsa'") in str(error.value)
+        assert "suite.yaml:10: methods.sen-sarsa.encoder.arch:" in str(error.value)
+        load_suite(write_suite(text.replace("seed_batch: 3", "seed_batch: 1")),
+                   plugins.registries())
+    finally:
+        plugins.unregister_plugin(module)

@@ -45,6 +45,7 @@ NATURE_CNN = EncoderSpec(
     config=NatureCNNConfig,
     description="Nature-DQN CNN (3 convolutions, 1 hidden layer) regressing the state",
     traceable=True,
+    batch_independent=True,
     min_frame_size=MIN_FRAME,
     search_space={"hidden": Choice((128, 256, 512))},
 )

@@ -88,6 +88,7 @@ SEN_RESNET = EncoderSpec(
     config=SenResNetConfig,
     description="SEN-DRL's encoder: 4 residual blocks of two 3x3 convolutions, 2 FC layers",
     traceable=True,
+    batch_independent=True,
     min_frame_size=min_frame_size,
     search_space={"hidden": Choice((64, 128, 256, 512)), "batch_norm": Choice((True, False))},
 )

@@ -228,6 +228,12 @@ class EncoderSpec:
     """The network's forward has no control flow that depends on its input, so senbench
     may freeze it into TorchScript for inference (1.6x faster at batch 1 for sen-resnet).
     Leave False unless that holds: a trace would silently fix one branch."""
+    batch_independent: bool = False
+    """In inference (eval mode) each frame's output depends on that frame alone, not on the
+    other frames of its batch, so a seed batch (``seed_batch``) may encode several seeds'
+    frames in one pass and a seed's curve stays bitwise the same whatever its companions.
+    Convolutions, linear layers, spatial softmax and batch norm in eval mode hold it;
+    anything that mixes the frames of a batch does not. Leave False unless that holds."""
     search_space: Mapping[str, Param] = field(default_factory=dict)
     """What ``senbench tune`` searches of the architecture's config, as ``encoder.<field>``
     (each distinct value trains its own encoder)."""

@@ -42,6 +42,7 @@ MLP = senbench.EncoderSpec(
     # forward has no branch that depends on its input: senbench may freeze it into
     # TorchScript for inference (it keeps the frozen network only if it matches).
     traceable=True,
+    batch_independent=True,
     search_space={"hidden": senbench.Choice((64, 128, 256, 512))},
 )
 
