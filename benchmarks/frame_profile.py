@@ -17,8 +17,9 @@ its eval.every and eval.episodes, not by this profile. Encoded cells use the
 committed sen-resnet encoders (results/encoders; the paper's d = 20% spec).
 
 The FLOP bound counts every multiply-add of the cell's torch operations
-(``torch.utils.flop_counter``) over a second, shorter run of the same cell, and divides the
-peak FLOP/s measured here (NatureCNN forward, batch 256, one thread) by the FLOPs per frame.
+(``torch.utils.flop_counter``) over a second, shorter run of the same cell (long enough to
+hold the learner's updates: a whole rollout for PPO), and divides the peak FLOP/s measured
+here (NatureCNN forward, batch 256, one thread) by the FLOPs per frame.
 """
 
 from __future__ import annotations
@@ -30,21 +31,23 @@ from contextlib import ExitStack
 from pathlib import Path
 from unittest import mock
 
-PAIRS = [  # (agent, observation, env, frames timed)
-    ("sarsa", "state", "mountaincar", 20_000),
-    ("sarsa", "encoded", "mountaincar", 4_000),
+PAIRS = [  # (agent, observation, env, frames timed, frames whose FLOPs are counted)
+    ("sarsa", "state", "mountaincar", 20_000, 5_000),
+    ("sarsa", "encoded", "mountaincar", 4_000, 1_000),
     # PPO (the zoo's Pendulum set: 4 envs x 1,024 frames a rollout): whole rollouts, each
-    # with its update, and the first frames of the next
-    ("ppo", "state", "pendulum", 8_196),
-    ("ppo", "encoded", "pendulum", 4_100),
-    ("ppo", "pixels", "pendulum", 4_100),
-    ("dqn", "state", "mountaincar", 4_000),
-    ("dqn", "pixels", "mountaincar", 2_000),
-    ("ddqn", "pixels", "mountaincar", 2_000),
-    ("drq", "pixels", "mountaincar", 1_000),
-    ("sac", "state", "pendulum", 1_000),
-    ("sac", "pixels", "pendulum", 300),
-    ("drq-sac", "pixels", "pendulum", 300),
+    # with its update, and the first frames of the next. Its FLOPs are counted over one
+    # whole rollout and its update: a run shorter than a rollout never updates, and its
+    # bound would count the rollout's forward passes only.
+    ("ppo", "state", "pendulum", 8_196, 4_100),
+    ("ppo", "encoded", "pendulum", 4_100, 4_100),
+    ("ppo", "pixels", "pendulum", 4_100, 4_100),
+    ("dqn", "state", "mountaincar", 4_000, 1_000),
+    ("dqn", "pixels", "mountaincar", 2_000, 500),
+    ("ddqn", "pixels", "mountaincar", 2_000, 500),
+    ("drq", "pixels", "mountaincar", 1_000, 250),
+    ("sac", "state", "pendulum", 1_000, 250),
+    ("sac", "pixels", "pendulum", 300, 200),
+    ("drq-sac", "pixels", "pendulum", 300, 200),
 ]
 PARTS = ("env", "rendering", "encoder", "update", "action", "evaluation", "recording", "other")
 ENCODER = "encoder: {arch: sen-resnet, sampler: uniform, samples: 50000, fraction: 0.2}"
@@ -173,7 +176,7 @@ def main() -> None:
           + " ".join(f"{p:>10s}" for p in PARTS))
     info = RunInfo.gather(Path("results") / "encoders")
     with tempfile.TemporaryDirectory() as tmp:
-        for agent, observation, env, frames in PAIRS:
+        for agent, observation, env, frames, counted in PAIRS:
             cell = cell_for(agent, observation, env, frames, Path(tmp))
             clock = Clock()
             with ExitStack() as stack:
@@ -186,7 +189,7 @@ def main() -> None:
                 raise SystemExit(f"{agent} {observation}: {outcome.error}")
             shares = dict(clock.spent)
             shares["other"] = wall - sum(shares.values())
-            short = cell_for(agent, observation, env, max(frames // 4, 200), Path(tmp))
+            short = cell_for(agent, observation, env, counted, Path(tmp))
             with mock.patch.object(StateEncoder, "__init__", eager), \
                     FlopCounterMode(display=False) as counter:
                 execute_cell(short, info)
