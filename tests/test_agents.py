@@ -88,6 +88,19 @@ def test_recorder_evaluates_at_zero_every_interval_and_the_budget():
     assert [r["step"] for r in recorder.rows] == [0, 300, 600, 900, 1000]
 
 
+def test_recorder_reports_the_running_mean_of_the_training_returns_at_each_evaluation():
+    reports = []
+    recorder = CellRecorder(1000, 300, lambda: {"return": -5.0, "return_std": 0.0,
+                                                "length": 1.0},
+                            lambda *args: reports.append(args))
+    recorder.step(0)
+    recorder.episode(200, -100.0, 200)
+    recorder.episode(290, -50.0, 90)
+    recorder.step(300)
+    assert reports[0] == (0, reports[0][1], -5.0, 0, None)  # no episode ended yet
+    assert reports[1][2:] == (-5.0, 300, -75.0)
+
+
 DETERMINISM = """\
 name: determinism
 envs:

@@ -105,6 +105,45 @@ def test_the_pruner_stops_a_trial_whose_seed_mean_curve_falls_behind():
     assert study.trials[0].intermediate_values == {1000: -95.0, 2000: -85.0}  # seed means
 
 
+def _pruned(objective, direction, curves):
+    """Which of three trials the median pruner stops, fed ``curves[trial]``: per step, the
+    (evaluation return, training return so far) both seeds report."""
+    study = optuna.create_study(direction=direction, pruner=optuna.pruners.MedianPruner(
+        n_startup_trials=2, n_warmup_steps=0))
+
+    def run(trial):
+        progress = tuning.PruningProgress(trial, ["a", "b"], lambda message: None, objective)
+        for i, (last_eval, train) in enumerate(curves[trial.number]):
+            step = 1000 * (i + 1)
+            for cell in ("a", "b"):
+                progress.update(cell, step, 1.0, last_eval, step, train)
+                # later progress of the same evaluation does not move the value reported
+                progress.update(cell, step + 10, 1.0, last_eval, step, -1e6)
+        return 0.0
+
+    study.optimize(run, n_trials=3)
+    return [t.state == optuna.trial.TrialState.PRUNED for t in study.trials], study
+
+
+def test_the_pruner_follows_the_objective_not_always_the_evaluation():
+    # evaluations flat at -1,000 (a greedy policy that never escapes) while training
+    # returns differ: train-return prunes on the training returns
+    curves = {0: [(-1000.0, -800.0), (-1000.0, -600.0)],
+              1: [(-1000.0, -850.0), (-1000.0, -650.0)],
+              2: [(-1000.0, -990.0), (-1000.0, -990.0)]}
+    pruned, study = _pruned("train-return", "maximize", curves)
+    assert pruned == [False, False, True]
+    assert study.trials[0].intermediate_values == {1000: -800.0, 2000: -600.0}
+    assert _pruned("auc", "maximize", curves)[0] == [False, False, False]  # flat: a draw
+    # before any training episode has ended there is nothing to report
+    pruned, study = _pruned("train-return", "maximize", {0: [(-1000.0, None)]} | {
+        1: [(-1000.0, None)], 2: [(-1000.0, None)]})
+    assert pruned == [False] * 3 and study.trials[0].intermediate_values == {}
+    # steps-to-threshold is minimised: the trial whose returns lag is the one pruned
+    lagging = {0: [(-300.0, None)], 1: [(-320.0, None)], 2: [(-900.0, None)]}
+    assert _pruned("steps-to-threshold", "minimize", lagging)[0] == [False, False, True]
+
+
 @pytest.mark.slow
 def test_a_killed_trial_is_marked_failed_by_the_next_process(tmp_path, monkeypatch):
     monkeypatch.setattr(tuning, "HEARTBEAT_S", 1)

@@ -83,7 +83,7 @@ class GridProgress:
         self._logged[cell_id] = self._clock()
 
     def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None,
-               eval_step: int | None = None) -> None:
+               eval_step: int | None = None, train_return: float | None = None) -> None:
         task = self._cells.get(cell_id)
         if self._progress is None or task is None:
             return

@@ -113,7 +113,8 @@ class CellRecorder:
         budget: int,
         every: int,
         evaluate: Callable[[], dict[str, Any]],
-        on_progress: Callable[[int, float, float | None, int | None], None] | None = None,
+        on_progress: Callable[[int, float, float | None, int | None, float | None], None]
+        | None = None,
     ):
         self.budget = budget
         self.every = every
@@ -123,6 +124,7 @@ class CellRecorder:
         self.steps = 0
         self.last_eval: float | None = None
         self._last_eval_step: int | None = None
+        self._train_sum, self._train_count = 0.0, 0  # the training episodes' returns so far
         self._next_eval = 0
         self._start = time.perf_counter()
         self._last_report = 0.0
@@ -153,8 +155,10 @@ class CellRecorder:
         if self.on_progress is not None and (evaluated
                                              or now - self._last_report >= PROGRESS_INTERVAL_S):
             self._last_report = now
+            train_return = (self._train_sum / self._train_count if self._train_count
+                            else None)
             self.on_progress(steps, steps / max(now, 1e-9), self.last_eval,
-                             self._last_eval_step)
+                             self._last_eval_step, train_return)
         return steps < self.budget
 
     def episode(self, steps: int, episode_return: float, length: int) -> None:
@@ -164,5 +168,7 @@ class CellRecorder:
                 f"episode return is {episode_return} at frame {steps:,}: the env's rewards, "
                 "or the agent's sum of them, are NaN or infinite — are the env's observations "
                 "or rewards unbounded, or did the agent's learning diverge?")
+        self._train_sum += episode_return
+        self._train_count += 1
         self.rows.append({"kind": "episode", "step": steps, "return": episode_return,
                           "return_std": None, "length": float(length), "wall_s": self.elapsed()})

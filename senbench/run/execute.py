@@ -30,8 +30,10 @@ from senbench.results.store import write_cell
 from senbench.run.evaluation import CellRecorder, Evaluator
 from senbench.suite.cell import Cell
 
-ProgressCallback = Callable[[str, int, float, float | None, int | None], None]
-"""(cell id, frames so far, frames/s, last evaluation return, the frame it was taken at)."""
+ProgressCallback = Callable[[str, int, float, float | None, int | None, float | None],
+                            None]
+"""(cell id, frames so far, frames/s, last evaluation return, the frame it was taken at,
+the mean return of the training episodes so far)."""
 
 
 @dataclass(frozen=True)

@@ -28,9 +28,9 @@ class Progress(Protocol):
         """A cell began; ``budget`` in frames."""
 
     def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None,
-               eval_step: int | None = None) -> None:
-        """A running cell's frames so far, frames/s, and its latest evaluation return with
-        the frame it was taken at."""
+               eval_step: int | None = None, train_return: float | None = None) -> None:
+        """A running cell's frames so far, frames/s, its latest evaluation return with
+        the frame it was taken at, and the mean return of its training episodes so far."""
 
     def finished(self, outcome: CellOutcome) -> None: ...
 
@@ -58,7 +58,7 @@ class NullProgress:
         pass
 
     def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None,
-               eval_step: int | None = None) -> None:
+               eval_step: int | None = None, train_return: float | None = None) -> None:
         pass
 
     def finished(self, outcome: CellOutcome) -> None:

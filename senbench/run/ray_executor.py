@@ -247,12 +247,13 @@ def _ray_cell(cell: Cell, info: RunInfo, key: str | None, files: dict[str, bytes
     last = 0.0
 
     def report(cell_id: str, steps: int, rate: float, last_eval: float | None,
-               eval_step: int | None) -> None:
+               eval_step: int | None, train_return: float | None) -> None:
         nonlocal last
         now = time.monotonic()
         if eval_step is not None or now - last >= 1.0:  # evaluations always; else 1/s
             last = now
-            sink.tell.remote(("update", cell_id, steps, rate, last_eval, eval_step))
+            sink.tell.remote(("update", cell_id, steps, rate, last_eval, eval_step,
+                              train_return))
 
     try:  # a seed of a batch runs alone here, its passes padded to its batch: same curve
         return execute_cells([cell], here, report)[0]

@@ -201,10 +201,15 @@ def trial_cells(tgt: Target, params: dict[str, Any], seeds: int, regs: Any) -> l
 
 class PruningProgress:
     """Receives the cells' progress; when every seed has evaluated at a frame, reports the
-    mean to the trial and raises TrialPruned if the pruner says so."""
+    seed mean of the objective's running value to the trial and raises TrialPruned if the
+    pruner says so. That value runs the objective's way: the evaluation return for auc and
+    final, its negative for steps-to-threshold (a study that minimises frames prunes the
+    trials whose returns are lower), and the mean return of the training episodes so far
+    for train-return (the objective itself at the trial's last frame)."""
 
-    def __init__(self, trial: Any, cell_ids: list[str], log: Any):
+    def __init__(self, trial: Any, cell_ids: list[str], log: Any, objective: str = "auc"):
         self.trial = trial
+        self.objective = objective
         self.evals: dict[str, dict[int, float]] = {cell_id: {} for cell_id in cell_ids}
         self.frames: dict[str, int] = {}
         """Frames each cell reported last: what a pruned trial spent."""
@@ -223,18 +228,27 @@ class PruningProgress:
     def finished(self, outcome: Any) -> None:
         pass
 
+    def running_value(self, last_eval: float, train_return: float | None) -> float:
+        if self.objective == "train-return":
+            return np.nan if train_return is None else train_return
+        return -last_eval if self.objective == "steps-to-threshold" else last_eval
+
     def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None,
-               eval_step: int | None = None) -> None:
+               eval_step: int | None = None, train_return: float | None = None) -> None:
         import optuna
 
         self.frames[cell_id] = max(steps, self.frames.get(cell_id, 0))
-        if last_eval is None or eval_step is None or cell_id not in self.evals:
+        if (last_eval is None or eval_step is None or cell_id not in self.evals
+                or eval_step in self.evals[cell_id]):  # the value as of its evaluation
             return
-        self.evals[cell_id][eval_step] = last_eval
+        self.evals[cell_id][eval_step] = self.running_value(last_eval, train_return)
         shared = set.intersection(*(set(curve) for curve in self.evals.values()))
         for step in sorted(shared - self.reported):
             self.reported.add(step)
-            value = float(np.nanmean([curve[step] for curve in self.evals.values()]))
+            values = [curve[step] for curve in self.evals.values()]
+            if np.isnan(values).all():  # no seed has ended a training episode yet
+                continue
+            value = float(np.nanmean(values))
             self.trial.report(value, step)
             if self.trial.should_prune():
                 raise optuna.TrialPruned(f"pruned at frame {step:,} (seed mean {value:.1f})")
@@ -355,7 +369,7 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
         cells = prepare_encoders(cells, directory, info, NullProgress(), summary)
         if summary.failed:  # the trial's encoder could not be trained
             raise RuntimeError(f"{summary.failed[0].error}")
-        progress = PruningProgress(trial, [c.id for c in cells], log)
+        progress = PruningProgress(trial, [c.id for c in cells], log, objective)
         trial.set_user_attr("frames", 0)
         try:
             run_processes(cells, directory, info, min(workers, len(cells)), progress,
