@@ -194,6 +194,18 @@ def test_validation_checks_the_tune_block(write_suite):
     assert "tune.sarsa-statee" in message and "sarsa-state" in message
     assert "tune.sarsa-state.gamma" in message
     assert "searches alpha, tiles, tilings, trace_decay" in message
+    # the ranges themselves, at their lines, before any tuning runs
+    text = SUITE + "tune:\n  sarsa-state:\n    alpha: {low: 0.01}\n" \
+        "    tiles: {values: [5]}\n    tilings: {low: 4}\n"
+    with pytest.raises(SuiteError) as info:
+        load_suite(write_suite(text), registries())
+    message, lines = str(info.value), len(SUITE.splitlines())
+    assert f"suite.yaml:{lines + 3}: tune.sarsa-state.alpha: [0.01, " in message
+    assert "must lie within" in message
+    assert (f"suite.yaml:{lines + 4}: tune.sarsa-state.tiles: a number is narrowed with "
+            "'low' and 'high'") in message
+    assert f"suite.yaml:{lines + 5}: tune.sarsa-state.tilings: not searched: the method " \
+        "fixes it in hyperparams" in message
 
 
 SEN = """\

@@ -123,6 +123,33 @@ class Choice:
 Param = Float | Int | Choice
 
 
+def narrow(param: Param, low: float | None, high: float | None,
+           values: list[Any] | None) -> Param:
+    """A declared range cut to a suite's narrower one (``senbench tune``): ``values``, a
+    subset, for a choice; ``low``/``high`` within the range for a number. ValueError, saying
+    what would do, for anything else."""
+    if isinstance(param, Choice):
+        if low is not None or high is not None or values is None:
+            raise ValueError(f"a choice is narrowed with 'values', a subset of "
+                             f"{list(param.values)}")
+        extra = [v for v in values if v not in param.values]
+        if extra:
+            raise ValueError(f"{extra} not among {list(param.values)}")
+        return Choice(tuple(values))
+    if values is not None:
+        raise ValueError("a number is narrowed with 'low' and 'high'")
+    low = param.low if low is None else low
+    high = param.high if high is None else high
+    if not param.low <= low <= high <= param.high:
+        raise ValueError(f"[{low}, {high}] must lie within [{param.low}, {param.high}] "
+                         "with low <= high")
+    if isinstance(param, Int):
+        if low != int(low) or high != int(high):
+            raise ValueError(f"whole numbers, got [{low}, {high}]")
+        return Int(int(low), int(high), param.log)
+    return Float(float(low), float(high), param.log)
+
+
 def _check_min_frame_size(kind: str, name: str, size: Any, function_allowed: bool) -> None:
     if size is None or (function_allowed and callable(size)):
         return

@@ -23,6 +23,7 @@ from senbench.suite.cell import Cell
 from senbench.suite.resolve import (
     check_batchable,
     check_capabilities,
+    check_tune,
     fits,
     resolve_config,
     resolve_encoder,
@@ -153,22 +154,7 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
             if env_name not in model.envs:
                 problem(("references", method_name, env_name),
                         unknown_name_message("suite env", env_name, list(model.envs)))
-    for method_name, ranges in model.tune.items():
-        if method_name not in model.methods:
-            known = list(model.methods)
-            problem(("tune", method_name), unknown_name_message("method", method_name, known))
-            continue
-        entry = model.methods[method_name]
-        searched = set()
-        if entry.agent in regs.agents:
-            searched |= set(regs.agents.get(entry.agent).search_space)
-        if entry.encoder is not None and entry.encoder.arch in regs.encoders:
-            searched |= {f"encoder.{name}"
-                         for name in regs.encoders.get(entry.encoder.arch).search_space}
-        for name in ranges:
-            if name not in searched:
-                problem(("tune", method_name, name), f"'{method_name}' searches "
-                        f"{', '.join(sorted(searched)) or 'nothing'}; not {name!r}")
+    check_tune(model, regs, problem)
     cells: list[Cell] = []
     for method_name, method in model.methods.items():
         agent = _check_method(method_name, method, regs, problem)

@@ -13,6 +13,7 @@ import pydantic
 
 from senbench.errors import unknown_name_message
 from senbench.plugin.registry import Registries
+from senbench.plugin.specs import narrow
 from senbench.suite.source import Loc
 
 _REPR = reprlib.Repr()  # keyword arguments only from Python 3.12
@@ -241,3 +242,33 @@ def check_batchable(method_name: str, method: Any, model: Any, agent: Any, regs:
                 f"{', '.join(able) or 'none'}. {fix[0].upper()}{fix[1:]}")
         return False
     return True
+
+
+def check_tune(model: Any, regs: Registries, problem) -> None:
+    """The suite's ``tune:`` block: each method a method of the suite, each name one it
+    searches, each range within (and of the kind of) what its agent or encoder declares."""
+    for method_name, ranges in model.tune.items():
+        if method_name not in model.methods:
+            known = list(model.methods)
+            problem(("tune", method_name), unknown_name_message("method", method_name, known))
+            continue
+        entry = model.methods[method_name]
+        searched = {}
+        if entry.agent in regs.agents:
+            searched |= regs.agents.get(entry.agent).search_space
+        if entry.encoder is not None and entry.encoder.arch in regs.encoders:
+            searched |= {f"encoder.{name}": param for name, param
+                         in regs.encoders.get(entry.encoder.arch).search_space.items()}
+        for name, narrower in ranges.items():
+            if name not in searched:
+                problem(("tune", method_name, name), f"'{method_name}' searches "
+                        f"{', '.join(sorted(searched)) or 'nothing'}; not {name!r}")
+                continue
+            if name in entry.hyperparams:
+                problem(("tune", method_name, name), f"not searched: the method fixes it in "
+                        f"hyperparams ({name}: {entry.hyperparams[name]!r})")
+                continue
+            try:
+                narrow(searched[name], narrower.low, narrower.high, narrower.values)
+            except ValueError as exc:
+                problem(("tune", method_name, name), str(exc))

@@ -36,7 +36,7 @@ import numpy as np
 
 from senbench.analysis.summary import per_cell
 from senbench.errors import SuiteError
-from senbench.plugin.specs import Choice, Float, Int, Param  # noqa: F401 - Float, Int re-exported
+from senbench.plugin.specs import Choice, Float, Int, Param, narrow  # noqa: F401 - re-exported
 from senbench.results.store import read_results, remove_stray_temp_files
 from senbench.run.execute import RunInfo
 from senbench.run.processes import run_processes
@@ -104,7 +104,10 @@ def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
             raise SuiteError(f"{where}: not searched ("
                              + ("the method fixes it in hyperparams" if name in fixed else
                                 f"agent '{agent.name}' searches {', '.join(space)}") + ")")
-        space[name] = narrow(space[name], narrower, where)
+        try:
+            space[name] = narrow(space[name], narrower.low, narrower.high, narrower.values)
+        except ValueError as exc:  # load_suite reports it first, at its line
+            raise SuiteError(f"{where}: {exc}") from None
     unknown = set(suite.model.tune) - set(suite.model.methods)
     if unknown:
         raise SuiteError(f"tune: {', '.join(sorted(unknown))} is not a method of the suite")
@@ -140,30 +143,6 @@ def tune_targets(suite: Suite, methods: list[str] | None, env: str | None, regs:
         raise SuiteError(f"--export writes one block per method, but {', '.join(several)} "
                          "runs on several envs: pick one with --env")
     return [target(suite, method, one, regs) for method, one in pairs]
-
-
-def narrow(param: Param, narrower: Any, where: str) -> Param:
-    """The declared range cut to the suite's: within it, never wider."""
-    if isinstance(param, Choice):
-        if narrower.low is not None or narrower.high is not None or narrower.values is None:
-            raise SuiteError(f"{where}: a choice is narrowed with 'values', a subset of "
-                             f"{list(param.values)}")
-        extra = [v for v in narrower.values if v not in param.values]
-        if extra:
-            raise SuiteError(f"{where}: {extra} not among {list(param.values)}")
-        return Choice(tuple(narrower.values))
-    if narrower.values is not None:
-        raise SuiteError(f"{where}: a number is narrowed with 'low' and 'high'")
-    low = param.low if narrower.low is None else narrower.low
-    high = param.high if narrower.high is None else narrower.high
-    if not param.low <= low <= high <= param.high:
-        raise SuiteError(f"{where}: [{low}, {high}] must lie within [{param.low}, "
-                         f"{param.high}] with low <= high")
-    if isinstance(param, Int):
-        if low != int(low) or high != int(high):
-            raise SuiteError(f"{where}: whole numbers, got [{low}, {high}]")
-        return Int(int(low), int(high), param.log)
-    return Float(float(low), float(high), param.log)
 
 
 def suggest(trial: Any, space: dict[str, Param]) -> dict[str, Any]:
