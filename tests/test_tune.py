@@ -206,6 +206,12 @@ def test_validation_checks_the_tune_block(write_suite):
             "'low' and 'high'") in message
     assert f"suite.yaml:{lines + 5}: tune.sarsa-state.tilings: not searched: the method " \
         "fixes it in hyperparams" in message
+    # an encoder setting the method fixes in its encoder's config is not searched either
+    text = SEN.replace("alpha: {low: 0.5, high: 1.0}", "encoder.hidden: {values: [64]}")
+    with pytest.raises(SuiteError) as info:
+        load_suite(write_suite(text), registries())
+    assert "tune.sen-sarsa.encoder.hidden: not searched: the method fixes it in its " \
+        "encoder's config (hidden: 32)" in str(info.value)
 
 
 SEN = """\

@@ -239,8 +239,8 @@ def tune(
     results: Annotated[Path, typer.Option(help="Results root.")] = Path("results"),
 ) -> None:
     """Tune methods' hyperparameters with Optuna: seed-averaged trials, pruning on the
-    seed-mean evaluation curve, a resumable shared study per method and env, each with the
-    same budget, and the best blocks exported."""
+    seed mean of the objective's running value at each evaluation, a resumable shared study
+    per method and env, each with the same budget, and the best blocks exported."""
     from senbench.cli.views import budget_table, trials_table
     from senbench.plugin.manager import registries
     from senbench.run.processes import usable_cores

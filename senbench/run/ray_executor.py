@@ -244,14 +244,14 @@ def _ray_cell(cell: Cell, info: RunInfo, key: str | None, files: dict[str, bytes
                                encoder_cache=_materialize(key, files) if key else
                                info.encoder_cache)
     sink.tell.remote(("started", cell.id))
-    last = 0.0
+    last, last_step = 0.0, None
 
     def report(cell_id: str, steps: int, rate: float, last_eval: float | None,
                eval_step: int | None, train_return: float | None) -> None:
-        nonlocal last
+        nonlocal last, last_step
         now = time.monotonic()
-        if eval_step is not None or now - last >= 1.0:  # evaluations always; else 1/s
-            last = now
+        if eval_step != last_step or now - last >= 1.0:  # a new evaluation always; else 1/s
+            last, last_step = now, eval_step
             sink.tell.remote(("update", cell_id, steps, rate, last_eval, eval_step,
                               train_return))
 

@@ -268,6 +268,11 @@ def check_tune(model: Any, regs: Registries, problem) -> None:
                 problem(("tune", method_name, name), f"not searched: the method fixes it in "
                         f"hyperparams ({name}: {entry.hyperparams[name]!r})")
                 continue
+            field = name.removeprefix("encoder.")
+            if field != name and field in entry.encoder.config:
+                problem(("tune", method_name, name), "not searched: the method fixes it in "
+                        f"its encoder's config ({field}: {entry.encoder.config[field]!r})")
+                continue
             try:
                 narrow(searched[name], narrower.low, narrower.high, narrower.values)
             except ValueError as exc:

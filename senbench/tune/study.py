@@ -3,11 +3,11 @@
 A trial is the method on one env with hyperparameters drawn from its agent's declared
 ``search_space`` (minus whatever the suite fixes in the method's ``hyperparams``), run over
 K seeds at once, one process each, exactly as ``senbench run`` runs cells. As the seeds
-evaluate, the mean of their evaluation returns at each evaluation frame goes to the pruner,
-which can stop the trial there (its cells are killed). The objective, once every seed has
-finished, is the mean over seeds of the chosen metric: AUC, final return, frames to
-threshold (a seed that never reaches it counts as the budget), or the mean return of the
-training episodes.
+evaluate, the seed mean of the objective's running value at each evaluation frame goes to
+the pruner (``PruningProgress``), which can stop the trial there (its cells are killed).
+The objective, once every seed has finished, is the mean over seeds of the chosen metric:
+AUC, final return, frames to threshold (a seed that never reaches it counts as the budget),
+or the mean return of the training episodes.
 
 Tuning seeds are 1,000,000 + i, apart from any suite's own seeds, so that a method is not
 tuned on the seeds it is then reported on.
