@@ -144,6 +144,34 @@ def test_the_pruner_follows_the_objective_not_always_the_evaluation():
     assert _pruned("steps-to-threshold", "minimize", lagging)[0] == [False, False, True]
 
 
+def test_a_new_study_first_runs_the_methods_own_settings(write_suite):
+    suite = load_suite(write_suite(SUITE), registries())
+    tgt = tuning.target(suite, "sarsa-state", None, registries())
+    params, outside = tuning.default_params(tgt)
+    assert outside == [] and set(params) == {"tiles", "alpha", "trace_decay"}  # tilings fixed
+    assert params == {k: tgt.template.hyperparams[k] for k in params}
+    study = optuna.create_study(direction="maximize")
+    tuning.enqueue_defaults(study, tgt, print)
+    assert tuning.suggest(study.ask(), tgt.space) == params  # the first trial: the defaults
+    tuning.enqueue_defaults(study, tgt, print)  # a study that has trials gets none again
+    assert len(study.trials) == 1
+    # a number outside the searched range is clipped into it (PPO's ent_coef 0.0)
+    ppo = SUITE.replace("sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}",
+                        "ppo-state: {agent: ppo}").replace("mountaincar: {}", "pendulum: {}")
+    tgt = tuning.target(load_suite(write_suite(ppo, "ppo.yaml"), registries()), "ppo-state",
+                        None, registries())
+    params, outside = tuning.default_params(tgt)
+    assert tgt.template.hyperparams["ent_coef"] == 0.0 and params["ent_coef"] == 1e-8
+    assert params["n_steps"] == 1024 and outside == []
+    # a choice the defaults are not among leaves them out, and says so
+    narrowed = ppo + "tune:\n  ppo-state:\n    n_steps: {values: [256, 512]}\n"
+    tgt = tuning.target(load_suite(write_suite(narrowed, "n.yaml"), registries()), "ppo-state",
+                        None, registries())
+    logged, study = [], optuna.create_study(direction="maximize")
+    tuning.enqueue_defaults(study, tgt, logged.append)
+    assert study.trials == [] and "n_steps 1024 not among [256, 512]" in logged[0]
+
+
 @pytest.mark.slow
 def test_a_killed_trial_is_marked_failed_by_the_next_process(tmp_path, monkeypatch):
     monkeypatch.setattr(tuning, "HEARTBEAT_S", 1)

@@ -32,18 +32,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from senbench.analysis.summary import per_cell
 from senbench.errors import SuiteError
 from senbench.plugin.specs import Choice, Float, Int, Param, narrow  # noqa: F401 - re-exported
-from senbench.results.store import read_results, remove_stray_temp_files
+from senbench.results.store import remove_stray_temp_files
 from senbench.run.execute import RunInfo
 from senbench.run.processes import run_processes
 from senbench.run.progress import NullProgress
 from senbench.run.runner import prepare_encoders
 from senbench.run.summary import RunSummary
 from senbench.suite import Cell, Suite
+from senbench.tune.trial import PruningProgress, objective_value  # noqa: F401 - re-exported
 
 TUNE_SEED_OFFSET = 1_000_000
 ENCODER = "encoder."
@@ -145,6 +143,38 @@ def tune_targets(suite: Suite, methods: list[str] | None, env: str | None, regs:
     return [target(suite, method, one, regs) for method, one in pairs]
 
 
+def default_params(tgt: Target) -> tuple[dict[str, Any], list[str]]:
+    """The method's own settings (its agent's defaults for the env and observation, the
+    suite's hyperparams, its encoder's config) as a trial's parameters, numbers clipped into
+    the searched range (PPO's ent_coef 0.0 into [1e-8, 0.1]); and the choices whose setting
+    is not among the searched values, which leave the defaults out of the study."""
+    params, outside = {}, []
+    for name, param in tgt.space.items():
+        value = (tgt.template.encoder["config"][name.removeprefix(ENCODER)]
+                 if name.startswith(ENCODER) else tgt.template.hyperparams[name])
+        if isinstance(param, Choice):
+            if value in param.values:
+                params[name] = value
+            else:
+                outside.append(f"{name} {value!r} not among {list(param.values)}")
+        else:
+            params[name] = type(param.low)(min(max(value, param.low), param.high))
+    return params, outside
+
+
+def enqueue_defaults(study: Any, tgt: Target, log: Any) -> None:
+    """A new study's first trial runs the method's own settings, so that its best trial is
+    never worse than the defaults on the tuning seeds (rl-baselines3-zoo's studies do not
+    do this; a tuned rival that lost to its own defaults would prove nothing)."""
+    if study.trials:
+        return
+    params, outside = default_params(tgt)
+    if outside:
+        log(f"{tgt.method}: its defaults are not a trial of the study ({'; '.join(outside)})")
+        return
+    study.enqueue_trial(params, user_attrs={"defaults": True})
+
+
 def suggest(trial: Any, space: dict[str, Param]) -> dict[str, Any]:
     params: dict[str, Any] = {}
     for name, param in space.items():
@@ -176,75 +206,6 @@ def trial_cells(tgt: Target, params: dict[str, Any], seeds: int, regs: Any) -> l
                                                               **encoder_params}))
     return [tgt.template.replace(hyperparams=dict(hyperparams), encoder=copy.deepcopy(encoder),
                                  seed=TUNE_SEED_OFFSET + i) for i in range(seeds)]
-
-
-class PruningProgress:
-    """Receives the cells' progress; when every seed has evaluated at a frame, reports the
-    seed mean of the objective's running value to the trial and raises TrialPruned if the
-    pruner says so. That value runs the objective's way: the evaluation return for auc and
-    final, its negative for steps-to-threshold (a study that minimises frames prunes the
-    trials whose returns are lower), and the mean return of the training episodes so far
-    for train-return (the objective itself at the trial's last frame)."""
-
-    def __init__(self, trial: Any, cell_ids: list[str], log: Any, objective: str = "auc"):
-        self.trial = trial
-        self.objective = objective
-        self.evals: dict[str, dict[int, float]] = {cell_id: {} for cell_id in cell_ids}
-        self.frames: dict[str, int] = {}
-        """Frames each cell reported last: what a pruned trial spent."""
-        self.reported: set[int] = set()
-        self._log = log
-
-    def log(self, message: str) -> None:
-        self._log(message)
-
-    def warn(self, message: str) -> None:
-        self._log(f"warning: {message}")
-
-    def started(self, cell_id: str, label: str, budget: int) -> None:
-        pass
-
-    def finished(self, outcome: Any) -> None:
-        pass
-
-    def running_value(self, last_eval: float, train_return: float | None) -> float:
-        if self.objective == "train-return":
-            return np.nan if train_return is None else train_return
-        return -last_eval if self.objective == "steps-to-threshold" else last_eval
-
-    def update(self, cell_id: str, steps: int, rate: float, last_eval: float | None,
-               eval_step: int | None = None, train_return: float | None = None) -> None:
-        import optuna
-
-        self.frames[cell_id] = max(steps, self.frames.get(cell_id, 0))
-        if (last_eval is None or eval_step is None or cell_id not in self.evals
-                or eval_step in self.evals[cell_id]):  # the value as of its evaluation
-            return
-        self.evals[cell_id][eval_step] = self.running_value(last_eval, train_return)
-        shared = set.intersection(*(set(curve) for curve in self.evals.values()))
-        for step in sorted(shared - self.reported):
-            self.reported.add(step)
-            values = [curve[step] for curve in self.evals.values()]
-            if np.isnan(values).all():  # no seed has ended a training episode yet
-                continue
-            value = float(np.nanmean(values))
-            self.trial.report(value, step)
-            if self.trial.should_prune():
-                raise optuna.TrialPruned(f"pruned at frame {step:,} (seed mean {value:.1f})")
-
-
-def objective_value(directory: Path, objective: str) -> float:
-    cells = per_cell(read_results(directory))
-    failed = cells[cells["status"] != "ok"]
-    if len(failed):
-        raise RuntimeError(f"{len(failed)} of the trial's cells failed; see {directory}")
-    column = {"auc": "auc", "final": "final_return", "steps-to-threshold": "steps_to_threshold",
-              "train-return": "train_return"}[objective]
-    values = cells[column].to_numpy(dtype=float)
-    if np.isnan(values).all():
-        raise RuntimeError(f"no seed of the trial has a {objective} (no training episode "
-                           f"ended within its frames?); see {directory}")
-    return float(np.nanmean(values))
 
 
 def storage_for(url: str | None, default_file: Path) -> Any:
@@ -328,6 +289,7 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     study.set_user_attr("suite", tgt.suite.name)
     study.set_user_attr("method", tgt.method)
     study.set_user_attr("env", tgt.env)
+    enqueue_defaults(study, tgt, log)
     info = RunInfo.gather(results_root / "encoders")
     base = results_root / tgt.suite.name / "tune" / study_name
     counted = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
@@ -360,7 +322,8 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
             raise RuntimeError(f"{len(summary.failed)} cells failed: "
                                f"{summary.failed[0].error}")
         value = objective_value(directory.parent, objective)
-        log(f"trial {trial.number}: {objective} {value:,.1f}")
+        named = " (the defaults)" if trial.user_attrs.get("defaults") else ""
+        log(f"trial {trial.number}{named}: {objective} {value:,.1f}")
         return value
 
     already = len(study.get_trials(deepcopy=False, states=counted))
