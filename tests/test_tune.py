@@ -173,6 +173,39 @@ def test_a_new_study_first_runs_the_methods_own_settings(write_suite):
 
 
 @pytest.mark.slow
+def test_a_time_limit_stops_between_trials_and_a_rerun_goes_on(tmp_path):
+    (tmp_path / "s.yaml").write_text(SUITE)
+    bad = tune(tmp_path, "--trials", "3", "--time-limit", "soon")
+    assert bad.returncode != 0 and "write it as 2h30m" in bad.stderr + bad.stdout
+    assert not (tmp_path / "results" / "tiny" / "tune.db").exists()  # nothing stored
+    assert tune(tmp_path, "--trials", "1").returncode == 0  # a trial takes seconds
+    # the next is not expected to end within 1 s of the start: none starts
+    done = tune(tmp_path, "--trials", "3", "--time-limit", "1s")
+    assert done.returncode == 75, done.stderr
+    assert "holds 1 of 3 trials" in done.stderr and "Run the same command again" in done.stderr
+    assert len(study_of(tmp_path).trials) == 1
+    done = tune(tmp_path, "--trials", "3")
+    assert done.returncode == 0, done.stderr
+    assert len(study_of(tmp_path).trials) == 3
+
+
+def test_a_trial_fits_before_a_deadline_at_the_mean_of_the_finished_ones():
+    import time as clock
+
+    study = optuna.create_study(direction="maximize")
+    assert tuning.fits(study, None) and tuning.fits(study, clock.monotonic() + 1.0)  # no estimate
+
+    def slow(trial):
+        clock.sleep(0.3)
+        return 0.0
+
+    study.optimize(slow, n_trials=1)
+    assert 0.3 <= tuning.trial_seconds(study) < 1.0
+    assert not tuning.fits(study, clock.monotonic() + 0.1)
+    assert tuning.fits(study, clock.monotonic() + 5.0)
+
+
+@pytest.mark.slow
 def test_a_killed_trial_is_marked_failed_by_the_next_process(tmp_path, monkeypatch):
     monkeypatch.setattr(tuning, "HEARTBEAT_S", 1)
     monkeypatch.setattr(tuning, "GRACE_S", 2)

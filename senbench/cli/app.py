@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import signal
+import time
 from pathlib import Path
 from typing import Annotated
 
@@ -236,6 +237,10 @@ def tune(
     export: Annotated[Path | None, typer.Option(
         help="Write each method's best trial as a suite 'methods:' block to this .yaml "
         "file.")] = None,
+    time_limit: Annotated[str | None, typer.Option(
+        help="Start a trial only if it is expected to end within this time of the "
+             "command's start (2h30m, 150m, 90s), at the mean of the study's finished "
+             "trials; exit 75 with the rest left for the next run.")] = None,
     results: Annotated[Path, typer.Option(help="Results root.")] = Path("results"),
 ) -> None:
     """Tune methods' hyperparameters with Optuna: seed-averaged trials, pruning on the
@@ -244,9 +249,11 @@ def tune(
     from senbench.cli.views import budget_table, trials_table
     from senbench.plugin.manager import registries
     from senbench.run.processes import usable_cores
+    from senbench.run.schedule import parse_duration
     from senbench.tune.export import export_best
     from senbench.tune.study import (
         check_objective,
+        fits,
         make_pruner,
         make_sampler,
         run_study,
@@ -256,6 +263,8 @@ def tune(
     )
 
     check_objective(objective)  # before a study is stored
+    deadline = (None if time_limit is None
+                else time.monotonic() + parse_duration(time_limit))
     if export is not None:
         check_out_file(export, (".yaml", ".yml"), "--export")
     suite = _load(suite_file)
@@ -276,13 +285,21 @@ def tune(
             storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
             sampler=make_sampler(sampler, seed), pruner=make_pruner(pruner, tgt),
             results_root=results, workers=processes, regs=regs,
-            log=lambda message: err.print(escape(message), highlight=False))
+            log=lambda message: err.print(escape(message), highlight=False),
+            deadline=deadline)
         studies.append((name, done, tgt))
         table = trials_table(done, name, objective)
         if table is None:
             err.print(f"study '{name}': no trial finished yet ({trial_counts(done)})")
         else:
             out.print(table)
+        counts = trial_counts(done)
+        if counts["complete"] + counts["pruned"] < trials and not fits(done, deadline):
+            err.print(f"--time-limit {time_limit}: study '{name}' holds "
+                      f"{counts['complete'] + counts['pruned']} of {trials} trials; the "
+                      "next was not expected to end in time. Run the same command again "
+                      "to go on.")
+            raise typer.Exit(75)
     if len(studies) > 1:
         out.print(budget_table(studies, seeds))
     if export is not None:

@@ -270,9 +270,27 @@ def make_pruner(name: str, tgt: Target) -> Any:
     raise SuiteError(f"--pruner must be median, hyperband or none, got {name!r}")
 
 
+def trial_seconds(study: Any) -> float | None:
+    """Mean wall time of the study's finished (not pruned) trials: what the next may take."""
+    import optuna
+
+    spans = [(t.datetime_complete - t.datetime_start).total_seconds()
+             for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))
+             if t.datetime_start and t.datetime_complete]
+    return sum(spans) / len(spans) if spans else None
+
+
+def fits(study: Any, deadline: float | None) -> bool:
+    """Whether another trial is expected to end before ``deadline`` (time.monotonic());
+    a study with no finished trial yet has no estimate, and starts one."""
+    return deadline is None or time.monotonic() + (trial_seconds(study) or 0.0) <= deadline
+
+
 def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: Any,
               study_name: str, sampler: Any, pruner: Any, results_root: Path, workers: int,
-              regs: Any, log: Any) -> Any:
+              regs: Any, log: Any, deadline: float | None = None) -> Any:
+    """The study, run until it holds ``trials`` finished or pruned trials, or until the
+    next trial is not expected to end before ``deadline`` (``--time-limit``)."""
     import optuna
 
 
@@ -326,10 +344,15 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
         log(f"trial {trial.number}{named}: {objective} {value:,.1f}")
         return value
 
+    def stop_at_deadline(study: optuna.Study, trial: Any) -> None:
+        if not fits(study, deadline):
+            study.stop()
+
     already = len(study.get_trials(deepcopy=False, states=counted))
-    if already < trials:
+    if already < trials and fits(study, deadline):
         study.optimize(run_trial, n_trials=trials - already, catch=(RuntimeError,),
-                       callbacks=[optuna.study.MaxTrialsCallback(trials, states=counted)])
+                       callbacks=[optuna.study.MaxTrialsCallback(trials, states=counted),
+                                  stop_at_deadline])
     return study
 
 
