@@ -240,13 +240,13 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
         resolved = resolve_config(agent, merged, where, problem)
         if encoder is not None:
             encoder = resolve_encoder(encoder, regs, where_encoder, problem)
-        if (encoder is not None and seed_batch > 1
-                and not regs.encoders.get(encoder["arch"]).batch_independent):
+        mixes = (encoder is not None and seed_batch > 1
+                 and not regs.encoders.get(encoder["arch"]).batch_independent)
+        if mixes:
             problem(where_encoder("arch"), f"seed_batch encodes several seeds' frames in "
                     f"one pass, and encoder '{encoder['arch']}' does not declare that a "
                     "frame's output is independent of its batch (EncoderSpec."
                     f"batch_independent); set seed_batch: 1 for method '{method_name}'")
-            continue
 
         def at(what: str, where_encoder=where_encoder) -> Loc:
             head, _, key = what.partition(".")
@@ -258,7 +258,7 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
 
         check_capabilities(agent, env_name, env_spec, method.observation, pixels, resolved,
                            encoder, regs, at, problem)
-        if resolved is None or (method.encoder is not None and encoder is None):
+        if mixes or resolved is None or (method.encoder is not None and encoder is None):
             continue
         labelled = {}
         if encoder is not None:
