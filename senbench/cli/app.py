@@ -294,9 +294,10 @@ def tune(
         else:
             out.print(table)
         counts = trial_counts(done)
-        if counts["complete"] + counts["pruned"] < trials and not fits(done, deadline):
-            err.print(f"--time-limit {time_limit}: study '{name}' holds "
-                      f"{counts['complete'] + counts['pruned']} of {trials} trials; the "
+        held = counts["complete"] + counts["pruned"]
+        if held < trials and not fits(done, deadline):
+            err.print(f"--time-limit {time_limit}: study '{name}' holds {held} of {trials} "
+                      "trials; the "
                       "next was not expected to end in time. Run the same command again "
                       "to go on.")
             raise typer.Exit(75)

@@ -96,19 +96,9 @@ def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
         arch = regs.encoders.get(entry.encoder.arch)
         space.update({f"{ENCODER}{name}": param for name, param in arch.search_space.items()
                       if name not in entry.encoder.config})
+    # the tune: block, which load_suite has checked (suite.resolve.check_tune)
     for name, narrower in suite.model.tune.get(method, {}).items():
-        where = f"tune.{method}.{name}"
-        if name not in space:
-            raise SuiteError(f"{where}: not searched ("
-                             + ("the method fixes it in hyperparams" if name in fixed else
-                                f"agent '{agent.name}' searches {', '.join(space)}") + ")")
-        try:
-            space[name] = narrow(space[name], narrower.low, narrower.high, narrower.values)
-        except ValueError as exc:  # load_suite reports it first, at its line
-            raise SuiteError(f"{where}: {exc}") from None
-    unknown = set(suite.model.tune) - set(suite.model.methods)
-    if unknown:
-        raise SuiteError(f"tune: {', '.join(sorted(unknown))} is not a method of the suite")
+        space[name] = narrow(space[name], narrower.low, narrower.high, narrower.values)
     if not space:
         raise SuiteError(f"agent '{agent.name}' declares no search space"
                          + (" left once the suite's hyperparams are fixed" if fixed else ""))
