@@ -144,7 +144,7 @@ def test_the_pruner_follows_the_objective_not_always_the_evaluation():
     assert _pruned("steps-to-threshold", "minimize", lagging)[0] == [False, False, True]
 
 
-def test_a_new_study_first_runs_the_methods_own_settings(write_suite):
+def test_a_study_runs_the_methods_own_settings_first_and_again_if_killed(write_suite):
     suite = load_suite(write_suite(SUITE), registries())
     tgt = tuning.target(suite, "sarsa-state", None, registries())
     params, outside = tuning.default_params(tgt)
@@ -152,9 +152,22 @@ def test_a_new_study_first_runs_the_methods_own_settings(write_suite):
     assert params == {k: tgt.template.hyperparams[k] for k in params}
     study = optuna.create_study(direction="maximize")
     tuning.enqueue_defaults(study, tgt, print)
-    assert tuning.suggest(study.ask(), tgt.space) == params  # the first trial: the defaults
-    tuning.enqueue_defaults(study, tgt, print)  # a study that has trials gets none again
+    first = study.ask()
+    assert tuning.suggest(first, tgt.space) == params  # the first trial: the defaults
+    tuning.enqueue_defaults(study, tgt, print)  # running: not queued twice
     assert len(study.trials) == 1
+    study.tell(first, state=optuna.trial.TrialState.FAIL)  # its process was killed
+    tuning.enqueue_defaults(study, tgt, print)  # so the defaults are queued again
+    again = study.ask()
+    assert again.number == 1 and tuning.suggest(again, tgt.space) == params
+    study.tell(again, 1.0)
+    tuning.enqueue_defaults(study, tgt, print)  # finished: never again
+    assert len(study.trials) == 2
+    # a study begun without them (or whose defaults all failed) gets them next
+    older = optuna.create_study(direction="maximize")
+    older.tell(older.ask(), 0.5)
+    tuning.enqueue_defaults(older, tgt, print)
+    assert tuning.suggest(older.ask(), tgt.space) == params
     # a number outside the searched range is clipped into it (PPO's ent_coef 0.0)
     ppo = SUITE.replace("sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}",
                         "ppo-state: {agent: ppo}").replace("mountaincar: {}", "pendulum: {}")

@@ -153,10 +153,19 @@ def default_params(tgt: Target) -> tuple[dict[str, Any], list[str]]:
 
 
 def enqueue_defaults(study: Any, tgt: Target, log: Any) -> None:
-    """A new study's first trial runs the method's own settings, so that its best trial is
+    """A study runs the method's own settings as a trial, first, so that its best trial is
     never worse than the defaults on the tuning seeds (rl-baselines3-zoo's studies do not
-    do this; a tuned rival that lost to its own defaults would prove nothing)."""
-    if study.trials:
+    do this; a tuned rival that lost to its own defaults would prove nothing). A defaults
+    trial that failed (its process killed: marked failed here first) is queued again; a
+    study that holds finished trials but never ran the defaults gets them next."""
+    import optuna
+
+    with warnings.catch_warnings():  # experimental in Optuna; a no-op without heartbeats
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        optuna.storages.fail_stale_trials(study)  # a killed defaults trial is not running
+    states = optuna.trial.TrialState
+    live = (states.COMPLETE, states.PRUNED, states.RUNNING, states.WAITING)
+    if any(t.user_attrs.get("defaults") and t.state in live for t in study.trials):
         return
     params, outside = default_params(tgt)
     if outside:
