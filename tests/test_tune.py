@@ -15,6 +15,7 @@ from senbench.cli.views import trials_table
 from senbench.plugin.manager import registries
 from senbench.suite import load_suite
 from senbench.tune import study as tuning
+from senbench.tune.export import best_block
 
 SUITE = """\
 name: tiny
@@ -183,6 +184,29 @@ def test_a_study_runs_the_methods_own_settings_first_and_again_if_killed(write_s
     logged, study = [], optuna.create_study(direction="maximize")
     tuning.enqueue_defaults(study, tgt, logged.append)
     assert study.trials == [] and "n_steps 1024 not among [256, 512]" in logged[0]
+
+
+def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_suite):
+    ppo = SUITE.replace("sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}",
+                        "ppo-state: {agent: ppo}").replace("mountaincar: {}", "pendulum: {}")
+    tgt = tuning.target(load_suite(write_suite(ppo, "ppo.yaml"), registries()), "ppo-state",
+                        None, registries())
+    study = optuna.create_study(direction="maximize")
+    tuning.enqueue_defaults(study, tgt, print)
+    defaults = study.ask()
+    tuning.suggest(defaults, tgt.space)
+    study.tell(defaults, -500.0)
+    other = study.ask()
+    tuning.suggest(other, tgt.space)
+    study.tell(other, -900.0)
+    # not ent_coef 1e-8 (the defaults clipped into the range): the suite's own entry, so
+    # the tuned suite's cells are the untuned one's and `run --reuse` can copy them
+    assert best_block(study, tgt) == {"ppo-state": {"agent": "ppo"}}
+    study.enqueue_trial({**other.params, "ent_coef": 0.01})
+    tuned = study.ask()
+    tuning.suggest(tuned, tgt.space)
+    study.tell(tuned, -100.0)
+    assert best_block(study, tgt)["ppo-state"]["hyperparams"]["ent_coef"] == 0.01
 
 
 @pytest.mark.slow

@@ -11,8 +11,12 @@ from senbench.tune.study import ENCODER, Target
 
 def best_block(study: Any, tgt: Target) -> dict[str, Any]:
     """The method's suite entry with the best trial's hyperparameters: a ``methods:`` block
-    a suite uses unchanged."""
+    a suite uses unchanged. Where the best trial is the defaults trial, the entry is the
+    method's own, as the suite has it (not the defaults clipped into the searched range),
+    so its cells are the untuned suite's computation and ``run --reuse`` can copy them."""
     entry = tgt.suite.model.methods[tgt.method].model_dump(exclude_unset=True)
+    if study.best_trial.user_attrs.get("defaults"):
+        return {tgt.method: entry}
     best = _plain(study.best_trial.params)
     entry["hyperparams"] = {**tgt.fixed,
                             **{k: v for k, v in best.items() if not k.startswith(ENCODER)}}
@@ -33,7 +37,9 @@ def export_best(studies: list[tuple[Any, Target]], path: Path, *, objective: str
     for study, tgt in studies:
         blocks.update(best_block(study, tgt))
         best = study.best_trial
-        head.append(f"# senbench tune: study '{study.study_name}', trial {best.number}, "
+        own = (" (the defaults: the method's own settings, unchanged)"
+               if best.user_attrs.get("defaults") else "")
+        head.append(f"# senbench tune: study '{study.study_name}', trial {best.number}{own}, "
                     f"{objective} {best.value:,.2f} over {seeds} seeds\n")
     text = yaml.safe_dump(blocks, sort_keys=False)
     with written_whole(path, "--export") as tmp:
