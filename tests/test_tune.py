@@ -207,6 +207,18 @@ def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_sui
     tuning.suggest(tuned, tgt.space)
     study.tell(tuned, -100.0)
     assert best_block(study, tgt)["ppo-state"]["hyperparams"]["ent_coef"] == 0.01
+    # a default moved into a narrowed range was not what the defaults trial ran: its block
+    # is the values the trial ran, as for any other trial
+    narrowed = ppo + "tune:\n  ppo-state:\n    learning_rate: {low: 1e-4, high: 5e-4}\n"
+    tgt = tuning.target(load_suite(write_suite(narrowed, "n.yaml"), registries()),
+                        "ppo-state", None, registries())
+    assert tuning.moved_defaults(tgt) == ["learning_rate 0.001 -> 0.0005"]
+    study = optuna.create_study(direction="maximize")
+    tuning.enqueue_defaults(study, tgt, print)
+    defaults = study.ask()
+    tuning.suggest(defaults, tgt.space)
+    study.tell(defaults, -500.0)
+    assert best_block(study, tgt)["ppo-state"]["hyperparams"]["learning_rate"] == 5e-4
 
 
 @pytest.mark.slow

@@ -6,16 +6,18 @@ from pathlib import Path
 from typing import Any
 
 from senbench.results.outputs import written_whole
-from senbench.tune.study import ENCODER, Target
+from senbench.tune.study import ENCODER, Target, moved_defaults
 
 
 def best_block(study: Any, tgt: Target) -> dict[str, Any]:
     """The method's suite entry with the best trial's hyperparameters: a ``methods:`` block
-    a suite uses unchanged. Where the best trial is the defaults trial, the entry is the
-    method's own, as the suite has it (not the defaults clipped into the searched range),
-    so its cells are the untuned suite's computation and ``run --reuse`` can copy them."""
+    a suite uses unchanged. Where the best trial is the defaults trial and it ran the
+    method's own settings (PPO's ent_coef 0.0 tried as the log range's 1e-8 counts as
+    such; a default moved into a narrowed range does not), the entry is the method's own,
+    as the suite has it, so its cells are the untuned suite's computation and
+    ``run --reuse`` can copy them."""
     entry = tgt.suite.model.methods[tgt.method].model_dump(exclude_unset=True)
-    if study.best_trial.user_attrs.get("defaults"):
+    if own_settings_won(study, tgt):
         return {tgt.method: entry}
     best = _plain(study.best_trial.params)
     entry["hyperparams"] = {**tgt.fixed,
@@ -38,12 +40,16 @@ def export_best(studies: list[tuple[Any, Target]], path: Path, *, objective: str
         blocks.update(best_block(study, tgt))
         best = study.best_trial
         own = (" (the defaults: the method's own settings, unchanged)"
-               if best.user_attrs.get("defaults") else "")
+               if own_settings_won(study, tgt) else "")
         head.append(f"# senbench tune: study '{study.study_name}', trial {best.number}{own}, "
                     f"{objective} {best.value:,.2f} over {seeds} seeds\n")
     text = yaml.safe_dump(blocks, sort_keys=False)
     with written_whole(path, "--export") as tmp:
         tmp.write_text("".join(head) + text)
+
+
+def own_settings_won(study: Any, tgt: Target) -> bool:
+    return bool(study.best_trial.user_attrs.get("defaults")) and not moved_defaults(tgt)
 
 
 def _plain(values: dict[str, Any]) -> dict[str, Any]:

@@ -152,6 +152,21 @@ def default_params(tgt: Target) -> tuple[dict[str, Any], list[str]]:
     return params, outside
 
 
+def moved_defaults(tgt: Target) -> list[str]:
+    """The defaults that :func:`default_params` had to move into the searched range, other
+    than a 0.0 on a log-scaled range (whose low end is as near 0 as it can get): where
+    there are none, the defaults trial ran the method's own settings."""
+    params, _ = default_params(tgt)
+    moved = []
+    for name, value in params.items():
+        param = tgt.space[name]
+        own = (tgt.template.encoder["config"][name.removeprefix(ENCODER)]
+               if name.startswith(ENCODER) else tgt.template.hyperparams[name])
+        if value != own and not (own == 0 and getattr(param, "log", False)):
+            moved.append(f"{name} {own!r} -> {value!r}")
+    return moved
+
+
 def enqueue_defaults(study: Any, tgt: Target, log: Any) -> None:
     """A study runs the method's own settings as a trial, first, so that its best trial is
     never worse than the defaults on the tuning seeds (rl-baselines3-zoo's studies do not
