@@ -26,7 +26,7 @@ from typing import Annotated
 from pydantic import Field
 from pydantic.dataclasses import dataclass
 
-from senbench import AgentSpec
+from senbench import AgentSpec, Choice
 from senbench_agents.augment import min_frame_size, scaled_pad
 from senbench_agents.dqn import DQN_SPACE, DQNAgent, DQNConfig
 from senbench_agents.ranges import NonNegativeInt, PositiveInt, Probability
@@ -177,4 +177,9 @@ DRQ_SPEC = AgentSpec(
     observations=frozenset({"pixels"}),
     description="DrQ: SB3's DQN on randomly shifted frames, target averaged over K shifts, "
     "loss over M (Kostrikov et al. 2020)",
-    search_space={**DQN_SPACE}, min_frame_size=min_frame_size, precisions=PRECISIONS)
+    # DrQ copies its target at every update (target_update_interval 1, its default): the
+    # zoo's DQN choices (500 to 10,000) hold no such value, so a study of DrQ would not
+    # run its own settings as trial 0 without it
+    search_space={**DQN_SPACE,
+                  "target_update_interval": Choice((1, 500, 1000, 5000, 10000))},
+    min_frame_size=min_frame_size, precisions=PRECISIONS)
