@@ -133,6 +133,13 @@ def tune_targets(suite: Suite, methods: list[str] | None, env: str | None, regs:
     return [target(suite, method, one, regs) for method, one in pairs]
 
 
+def own_setting(tgt: Target, name: str) -> Any:
+    """The method's own value of a searched setting: its hyperparams', or its encoder
+    config's for an ``encoder.`` name."""
+    return (tgt.template.encoder["config"][name.removeprefix(ENCODER)]
+            if name.startswith(ENCODER) else tgt.template.hyperparams[name])
+
+
 def default_params(tgt: Target) -> tuple[dict[str, Any], list[str]]:
     """The method's own settings (its agent's defaults for the env and observation, the
     suite's hyperparams, its encoder's config) as a trial's parameters, numbers clipped into
@@ -140,8 +147,7 @@ def default_params(tgt: Target) -> tuple[dict[str, Any], list[str]]:
     is not among the searched values, which leave the defaults out of the study."""
     params, outside = {}, []
     for name, param in tgt.space.items():
-        value = (tgt.template.encoder["config"][name.removeprefix(ENCODER)]
-                 if name.startswith(ENCODER) else tgt.template.hyperparams[name])
+        value = own_setting(tgt, name)
         if isinstance(param, Choice):
             if value in param.values:
                 params[name] = value
@@ -159,10 +165,8 @@ def moved_defaults(tgt: Target) -> list[str]:
     params, _ = default_params(tgt)
     moved = []
     for name, value in params.items():
-        param = tgt.space[name]
-        own = (tgt.template.encoder["config"][name.removeprefix(ENCODER)]
-               if name.startswith(ENCODER) else tgt.template.hyperparams[name])
-        if value != own and not (own == 0 and getattr(param, "log", False)):
+        own = own_setting(tgt, name)
+        if value != own and not (own == 0 and getattr(tgt.space[name], "log", False)):
             moved.append(f"{name} {own!r} -> {value!r}")
     return moved
 
