@@ -67,6 +67,21 @@ def test_ppo_stops_exactly_at_the_budget_and_reports_episodes():
     assert len(log.episodes) == 2 * (1024 // 2 // 200)
 
 
+def test_ppo_normalize_reward_scales_what_it_learns_from_not_what_it_records():
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    settings = {"n_envs": 1, "n_steps": 400, "batch_size": 100, "n_epochs": 1}
+    plain, plain_log = learn("ppo", "pendulum", 400, **settings)
+    scaled, scaled_log = learn("ppo", "pendulum", 400, normalize_reward=True, **settings)
+    venv = scaled.model.get_env()
+    assert isinstance(venv, VecNormalize) and venv.norm_reward and not venv.norm_obs
+    assert not isinstance(plain.model.get_env(), VecNormalize)
+    # Both episodes end inside the first rollout, before any update: the same actions, and
+    # the recorded returns are the env's own, not the scaled rewards PPO learns from.
+    assert len(scaled_log.episodes) == 2 and scaled_log.episodes == plain_log.episodes
+    assert venv.ret_rms.count > 1  # the return statistics were updated
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("agent", ["ppo", "dqn"])
 def test_sb3_agents_leave_no_log_folder_behind(agent, tmp_path, monkeypatch):

@@ -22,3 +22,22 @@ def test_a_committed_suite_validates(path):
     suite = load_suite(path, registries())
     assert suite.name == path.stem  # its results go under results/<file name>
     assert suite.cells
+
+
+RESULTS = Path(__file__).resolve().parents[1] / "results"
+RUN_SUITES = [p for p in SUITES if any((RESULTS / p.stem / "cells").glob("*.parquet"))
+              and not p.stem.startswith("tune-")]  # a study's cells run on tuning seeds
+
+
+def test_some_committed_suites_have_results():
+    assert len(RUN_SUITES) >= 6  # the paper suites and the controls
+
+
+@pytest.mark.parametrize("path", RUN_SUITES, ids=lambda p: p.stem)
+def test_every_committed_result_is_a_cell_of_its_suite_today(path):
+    # A cell's id hashes what it computes; a change that moved it (a new agent setting
+    # left in the id at its default, say) would orphan the committed results: `run` would
+    # compute them again and `report` would not find them.
+    ids = {cell.id for cell in load_suite(path, registries()).cells}
+    committed = {p.stem for p in (RESULTS / path.stem / "cells").glob("*.parquet")}
+    assert committed <= ids, sorted(committed - ids)

@@ -103,7 +103,16 @@ def _resolve_dataclass(config_cls, what: str, params: dict[str, Any], where,
             culprit = next((w for w in words if w in values), None)
             problem(where(culprit) if culprit else where("")[:-1], message)
         return None
-    return dataclasses.asdict(config)
+    return without_late_defaults(config_cls, dataclasses.asdict(config))
+
+
+def without_late_defaults(config_cls, values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` less the fields the config names in ``LATE_FIELDS`` (settings added after
+    results were committed) where they hold their default: a cell that never sets one keeps
+    the id it had before the field existed. The agent's config fills them in again."""
+    late = getattr(config_cls, "LATE_FIELDS", ())
+    defaults = {f.name: f.default for f in dataclasses.fields(config_cls) if f.name in late}
+    return {k: v for k, v in values.items() if not (k in defaults and v == defaults[k])}
 
 
 def _type_name(annotation: Any) -> str:
