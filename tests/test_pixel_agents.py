@@ -290,3 +290,27 @@ def test_the_papers_seven_methods_run_in_one_suite_and_report(write_suite, tmp_p
     assert again.keys() == first.keys() and again["model"].keys() == first["model"].keys()
     assert all(torch.equal(again["model"][k], first["model"][k]) for k in first["model"])
     assert torch.equal(again["mean"], first["mean"])
+
+
+def test_ppo_on_pixels_shares_its_cnn_unless_told_to_give_the_actor_its_own(write_suite):
+    from senbench.observe.observations import make_env
+
+    regs = registries()
+    policies = {}
+    for share in (True, False):
+        setting = "" if share else ", share_features_extractor: false"
+        text = PIXELS.replace("{n_steps: 64, batch_size: 32, n_epochs: 1}",
+                              "{n_steps: 64, batch_size: 32, n_epochs: 1%s}" % setting)
+        cell = next(c for c in load_suite(write_suite(text), regs).cells if c.agent == "ppo")
+        env, agent = regs.envs.get(cell.env), regs.agents.get("ppo")
+
+        def make(env=env, cell=cell):
+            return make_env(env, "pixels", cell.max_episode_steps, cell.env_options,
+                            cell.pixels)
+
+        learner = agent.make(AgentContext(agent.config(**cell.hyperparams), env, make, 0, 1))
+        policies[share] = learner.model.policy
+    assert policies[True].pi_features_extractor is policies[True].vf_features_extractor
+    separate = policies[False]
+    assert separate.pi_features_extractor is not separate.vf_features_extractor
+    assert type(separate.vf_features_extractor).__name__ == "NatureCNN"

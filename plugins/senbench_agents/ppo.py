@@ -55,8 +55,12 @@ class PPOConfig:
     standard deviation (SB3's VecNormalize with norm_reward only), as rl-baselines3-zoo's
     PPO sets for pixels (CarRacing). Recorded returns stay the env's own."""
 
-    LATE_FIELDS: ClassVar[tuple[str, ...]] = ("normalize_reward",)
-    """Added after PPO results were committed: at its default, left out of a cell's id."""
+    share_features_extractor: bool = True
+    """On pixels: one CNN under both actor and critic (SB3's default), or one each, so that
+    the critic's loss does not shape the actor's features."""
+
+    LATE_FIELDS: ClassVar[tuple[str, ...]] = ("normalize_reward", "share_features_extractor")
+    """Added after PPO results were committed: at their defaults, left out of a cell's id."""
 
     def __post_init__(self) -> None:  # each field's own range is in its type
         if self.batch_size > self.n_steps * self.n_envs:
@@ -94,6 +98,7 @@ class PPOAgent:
             policy_kwargs={
                 "net_arch": {"pi": list(cfg.net_arch), "vf": list(cfg.net_arch)},
                 "activation_fn": activations[cfg.activation],
+                "share_features_extractor": cfg.share_features_extractor,
                 # SB3's Adam (eps 1e-5, which it sets only when given no kwargs), fused:
                 # the same update, 14-18% more frames/s on one core.
                 "optimizer_kwargs": {"eps": 1e-5, "fused": True},
