@@ -299,8 +299,7 @@ def test_ppo_on_pixels_shares_its_cnn_unless_told_to_give_the_actor_its_own(writ
     policies = {}
     for share in (True, False):
         setting = "" if share else ", share_features_extractor: false"
-        text = PIXELS.replace("{n_steps: 64, batch_size: 32, n_epochs: 1}",
-                              "{n_steps: 64, batch_size: 32, n_epochs: 1%s}" % setting)
+        text = PIXELS.replace("n_epochs: 1}", f"n_epochs: 1{setting}}}")
         cell = next(c for c in load_suite(write_suite(text), regs).cells if c.agent == "ppo")
         env, agent = regs.envs.get(cell.env), regs.agents.get("ppo")
 
