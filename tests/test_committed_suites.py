@@ -10,7 +10,9 @@ import pytest
 from senbench.plugin.manager import registries
 from senbench.suite import load_suite
 
-SUITES = sorted((Path(__file__).resolve().parents[1] / "suites").glob("*.yaml"))
+ROOT = Path(__file__).resolve().parents[1]
+SUITES = sorted((ROOT / "suites").glob("*.yaml"))
+RESULTS = ROOT / "results"
 
 
 def test_the_project_ships_suites():
@@ -24,7 +26,6 @@ def test_a_committed_suite_validates(path):
     assert suite.cells
 
 
-RESULTS = Path(__file__).resolve().parents[1] / "results"
 RUN_SUITES = [p for p in SUITES if any((RESULTS / p.stem / "cells").glob("*.parquet"))
               and not p.stem.startswith("tune-")]  # a study's cells run on tuning seeds
 
