@@ -19,9 +19,8 @@ from pathlib import Path
 import torch
 import torch.nn.functional as F
 
-from senbench.observe.observations import make_env
 from senbench.plugin.manager import registries
-from senbench.plugin.specs import AgentContext
+from senbench.run.execute import agent_context
 from senbench.suite import load_suite
 
 SUITES = Path(__file__).resolve().parents[1] / "suites"
@@ -30,16 +29,8 @@ SUITES = Path(__file__).resolve().parents[1] / "suites"
 def first_update_gradients(cell) -> tuple[float, float, float]:
     """(policy-loss gradient norm, vf_coef × value-loss gradient norm, mean |return|) on the
     shared CNN at the cell's first update."""
-    regs = registries()
-    env_spec, spec = regs.envs.get(cell.env), regs.agents.get(cell.agent)
-
-    def make():
-        return make_env(env_spec, cell.observation, cell.max_episode_steps, cell.env_options,
-                        cell.pixels, None)
-
     torch.manual_seed(cell.seed)
-    model = spec.make(AgentContext(spec.config(**cell.hyperparams), env_spec, make, cell.seed,
-                                   1)).model
+    model = registries().agents.get(cell.agent).make(agent_context(cell)).model
     seen = {}
 
     def probe() -> None:  # in place of PPO.train, after the first rollout

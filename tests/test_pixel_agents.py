@@ -293,7 +293,7 @@ def test_the_papers_seven_methods_run_in_one_suite_and_report(write_suite, tmp_p
 
 
 def test_ppo_on_pixels_shares_its_cnn_unless_told_to_give_the_actor_its_own(write_suite):
-    from senbench.observe.observations import make_env
+    from senbench.run.execute import agent_context
 
     regs = registries()
     policies = {}
@@ -301,13 +301,7 @@ def test_ppo_on_pixels_shares_its_cnn_unless_told_to_give_the_actor_its_own(writ
         setting = "" if share else ", share_features_extractor: false"
         text = PIXELS.replace("n_epochs: 1}", f"n_epochs: 1{setting}}}")
         cell = next(c for c in load_suite(write_suite(text), regs).cells if c.agent == "ppo")
-        env, agent = regs.envs.get(cell.env), regs.agents.get("ppo")
-
-        def make(env=env, cell=cell):
-            return make_env(env, "pixels", cell.max_episode_steps, cell.env_options,
-                            cell.pixels)
-
-        learner = agent.make(AgentContext(agent.config(**cell.hyperparams), env, make, 0, 1))
+        learner = regs.agents.get("ppo").make(agent_context(cell))
         policies[share] = learner.model.policy
     assert policies[True].pi_features_extractor is policies[True].vf_features_extractor
     separate = policies[False]

@@ -79,6 +79,22 @@ class CellOutcome:
     wall_s: float
 
 
+def agent_context(cell: Cell, encoder: Any = None) -> AgentContext:
+    """What the cell's agent is built from: its resolved config, env, a maker of envs with
+    the cell's observation pipeline (``encoder``: the trained state encoder of an
+    ``encoded`` cell), seed, threads and precision. A benchmark or test that builds a
+    cell's agent outside a run builds it from this too, so it is the agent a run builds."""
+    regs = registries()
+    env_spec = regs.envs.get(cell.env)
+
+    def make() -> Any:
+        return make_env(env_spec, cell.observation, cell.max_episode_steps, cell.env_options,
+                        cell.pixels, encoder)
+
+    return AgentContext(regs.agents.get(cell.agent).config(**cell.hyperparams), env_spec,
+                        make, cell.seed, cell.threads, cell.precision)
+
+
 def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = None,
                  encoder: Any = None) -> tuple[list[dict[str, Any]], CellOutcome]:
     """Run a cell: its result rows, and its outcome. Nothing is written here, so a cell can
@@ -95,23 +111,14 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
     recorder: CellRecorder | None = None
     status, error = "ok", None
     try:
-        regs = registries()
-        env_spec = regs.envs.get(cell.env)
-        agent_spec = regs.agents.get(cell.agent)
         request = cell.encoder_request()
         if alone and request is not None:
-            encoder = load_or_train(info.encoder_cache, request, regs)
-
-        def make() -> Any:
-            return make_env(env_spec, cell.observation, cell.max_episode_steps,
-                            cell.env_options, cell.pixels, encoder)
-
+            encoder = load_or_train(info.encoder_cache, request, registries())
         if alone:
             _seed_everything(cell.seed)
-        ctx = AgentContext(agent_spec.config(**cell.hyperparams), env_spec, make, cell.seed,
-                           cell.threads, cell.precision)
-        agent = agent_spec.make(ctx)
-        evaluator = Evaluator(make(), cell.eval_episodes, cell.seed, cell.eval_epsilon)
+        ctx = agent_context(cell, encoder)
+        agent = registries().agents.get(cell.agent).make(ctx)
+        evaluator = Evaluator(ctx.make_env(), cell.eval_episodes, cell.seed, cell.eval_epsilon)
         report = None if progress is None else (lambda *a: progress(cell.id, *a))
         recorder = CellRecorder(cell.budget, cell.eval_every,
                                 lambda: evaluator(agent.act), report)
