@@ -78,3 +78,29 @@ def test_report_shows_the_actions_of_each_method(write_suite, tmp_path):
     assert done.returncode == 0, done.stderr
     assert "actions in evaluation episodes" in done.stdout
     assert "0: " in done.stdout and "last" in done.stdout and "500" in done.stdout
+
+
+
+
+def test_epsilon_greedy_evaluation_draws_from_no_generator_training_uses():
+    """controls-eval-epsilon pairs its evaluations with controls-pixels' greedy ones on this:
+    with ε > 0 the agent still learns exactly as with greedy evaluation, so each evaluation
+    plays the same network. SB3's DQN explores with numpy's global generator and samples
+    with torch's; a DQN's greedy act and the evaluation's random actions touch neither."""
+    import random
+
+    import torch
+
+    from senbench.plugin.specs import AgentContext
+
+    spec, dqn = registries().envs.get("mountaincar"), registries().agents.get("dqn")
+    ctx = AgentContext(dqn.config(), spec, lambda: make_env(spec, "state", 50, {}, None, None),
+                       0, 1)
+    agent = dqn.make(ctx)
+    np.random.seed(1), random.seed(1), torch.manual_seed(1)
+    before = (np.random.get_state()[1].copy(), random.getstate(), torch.get_rng_state())
+    played = evaluator("mountaincar", epsilon=0.5)(agent.act)
+    after = (np.random.get_state()[1], random.getstate(), torch.get_rng_state())
+    assert played["action_share"] != [0.0, 0.0, 1.0] and max(played["action_share"]) < 0.9
+    assert (before[0] == after[0]).all() and before[1] == after[1]
+    assert torch.equal(before[2], after[2])
