@@ -314,6 +314,27 @@ def test_a_suite_narrows_the_declared_space_and_cannot_widen_it(write_suite):
                           registries())
 
 
+def test_a_study_is_not_resumed_over_another_search_space(write_suite):
+    """Trials drawn from an older space (a narrowed range, a new setting) are refused, not
+    mixed into the new study; the space a study was drawn from passes."""
+    from senbench.errors import SuiteError
+    from senbench.tune.space import check_same_space, suggest
+
+    regs = registries()
+    whole = tuning.target(load_suite(write_suite(SUITE), regs), "sarsa-state", None, regs)
+    narrowed = SUITE + "tune:\n  sarsa-state:\n    alpha: {low: 0.5, high: 1.0}\n"
+    tgt = tuning.target(load_suite(write_suite(narrowed), regs), "sarsa-state", None, regs)
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    study.optimize(lambda trial: suggest(trial, whole.space)["alpha"], n_trials=2)
+    check_same_space(study, whole.space, "s")
+    with pytest.raises(SuiteError, match=r"study 's': its trial 0 .*alpha: \[.*\] -> "
+                       r"\[0\.5, 1\.0, log\]\); .*--study NAME"):
+        check_same_space(study, tgt.space, "s")
+    grown = {**whole.space, "extra": tuning.Choice((True, False))}
+    with pytest.raises(SuiteError, match=r"extra: absent -> \[True, False\]"):
+        check_same_space(study, grown, "s")
+
+
 def test_validation_checks_the_tune_block(write_suite):
     from senbench.errors import SuiteError
 

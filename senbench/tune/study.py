@@ -41,6 +41,7 @@ from senbench.run.progress import NullProgress
 from senbench.run.runner import prepare_encoders
 from senbench.run.summary import RunSummary
 from senbench.suite import Cell, Suite
+from senbench.tune.space import check_same_space, suggest
 from senbench.tune.trial import PruningProgress, objective_value  # noqa: F401 - re-exported
 
 TUNE_SEED_OFFSET = 1_000_000
@@ -193,20 +194,6 @@ def enqueue_defaults(study: Any, tgt: Target, log: Any) -> None:
     study.enqueue_trial(params, user_attrs={"defaults": True})
 
 
-def suggest(trial: Any, space: dict[str, Param]) -> dict[str, Any]:
-    params: dict[str, Any] = {}
-    for name, param in space.items():
-        if isinstance(param, Float):
-            params[name] = trial.suggest_float(name, param.low, param.high, log=param.log)
-        elif isinstance(param, Int):
-            params[name] = trial.suggest_int(name, param.low, param.high, log=param.log)
-        elif isinstance(param, Choice):
-            params[name] = trial.suggest_categorical(name, list(param.values))
-        else:
-            raise TypeError(f"{name}: not a Float, Int or Choice: {param!r}")
-    return params
-
-
 def trial_cells(tgt: Target, params: dict[str, Any], seeds: int, regs: Any) -> list[Cell]:
     """The K cells of a trial: the template's config with the trial's hyperparameters, on
     the tuning seeds. Hyperparameters the agent refuses (its own range checks, e.g. a
@@ -325,6 +312,7 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     study.set_user_attr("suite", tgt.suite.name)
     study.set_user_attr("method", tgt.method)
     study.set_user_attr("env", tgt.env)
+    check_same_space(study, tgt.space, study_name)
     enqueue_defaults(study, tgt, log)
     info = RunInfo.gather(results_root / "encoders")
     base = results_root / tgt.suite.name / "tune" / study_name
