@@ -88,6 +88,7 @@ def test_two_processes_share_one_study(tmp_path):
     trials = study_of(tmp_path).trials
     assert 6 <= len(trials) <= 7  # each process stops once the study holds 6
     assert len({t.user_attrs["pid"] for t in trials}) == 2
+    assert sum(bool(t.user_attrs.get("defaults")) for t in trials) == 1  # queued once
 
 
 def test_the_pruner_stops_a_trial_whose_seed_mean_curve_falls_behind():

@@ -21,6 +21,7 @@ killed is marked failed by the next process that starts, instead of staying RUNN
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import fcntl
@@ -28,6 +29,7 @@ import os
 import platform
 import time
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -234,9 +236,7 @@ def storage_for(url: str | None, default_file: Path) -> Any:
         if scheme == "sqlite" and url.startswith("sqlite:///"):
             # Two processes creating a new database's tables at once collide: the first
             # creates them under a lock, the second then finds them.
-            lock_path = Path(url[len("sqlite:///"):] + ".lock")
-            with open(lock_path, "w") as lock:
-                fcntl.flock(lock, fcntl.LOCK_EX)
+            with sqlite_lock(url):
                 return create()
         for attempt in range(10):  # a server database: retry the same collision
             try:
@@ -246,6 +246,18 @@ def storage_for(url: str | None, default_file: Path) -> Any:
                     raise
                 time.sleep(0.2 + 0.3 * attempt)
     return url
+
+
+@contextlib.contextmanager
+def sqlite_lock(url: str | None) -> Iterator[None]:
+    """Held by one process at a time per SQLite file (``url``), across processes; a no-op
+    for other storages."""
+    if not (url or "").startswith("sqlite:///"):
+        yield
+        return
+    with open(Path(url[len("sqlite:///"):] + ".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
 
 
 def make_sampler(name: str, seed: int | None) -> Any:
@@ -313,7 +325,9 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     study.set_user_attr("method", tgt.method)
     study.set_user_attr("env", tgt.env)
     check_same_space(study, tgt.space, study_name)
-    enqueue_defaults(study, tgt, log)
+    # two processes opening a new study at once would both queue the defaults
+    with sqlite_lock(getattr(storage, "url", storage if isinstance(storage, str) else None)):
+        enqueue_defaults(study, tgt, log)
     info = RunInfo.gather(results_root / "encoders")
     base = results_root / tgt.suite.name / "tune" / study_name
     counted = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
