@@ -139,3 +139,34 @@ def test_the_bars_envs_draw_each_observation_dimension_as_a_bar():
     # (cos, sin, θ̇) = (1, 0, 8): full, half, full
     assert (pendulum[0, 0] == 255).all() and (pendulum[0, 10, :5] == 255).all()
     assert not pendulum[0, 10, 6:].any() and (pendulum[0, 20] == 255).all()
+
+
+PIXEL_CONTROLS = sorted(p for p in (ROOT / "suites").glob("controls-*.yaml")
+                        if p.stem != "controls-state")  # which has its own twin above
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", PIXEL_CONTROLS, ids=lambda p: p.stem)
+def test_each_control_suite_runs_every_learner_end_to_end_in_a_quick_twin(path, tmp_path):
+    """The committed control suite, one seed, a few hundred frames and short episodes:
+    every method's pipeline (frames, CNN, replay or rollouts, evaluation, the policy's
+    action record) runs, and the report reads it, references included."""
+    text = yaml.safe_load(path.read_text())
+    text.update(seeds=1, budget=600, eval={**text["eval"], "every": 300, "episodes": 1})
+    text["envs"] = {env: {"max_episode_steps": 100} for env in text["envs"]}
+    suite_file = tmp_path / path.name
+    suite_file.write_text(yaml.safe_dump(text))
+    suite = load_suite(suite_file, registries())
+    summary = run_suite(suite, tmp_path / "r", workers=2)
+    assert not summary.failed and summary.ok == len(suite.cells)
+    results = read_results(tmp_path / "r" / suite.name)
+    evals = results[results["kind"] == "eval"]
+    assert len(evals) == 3 * len(suite.cells)  # at 0, 300 and 600 frames
+    recorded = evals["action_share"].notna() | evals["action_mean"].notna()
+    assert recorded.all()
+    table = summarize(results)
+    assert len(table) == len({(c.env, c.method) for c in suite.cells})
+    for method, envs in text.get("references", {}).items():
+        for env, ref in envs.items():
+            row = table[(table["method"] == method) & (table["env"] == env)]
+            assert row["reference"].item() == ref["value"]
