@@ -229,6 +229,7 @@ def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_sui
 
 
 @pytest.mark.parametrize("suite_file", ["tune-paper-pendulum.yaml",
+                                        "tune-paper-pendulum-ppo.yaml",
                                         "tune-paper-mountaincar.yaml"])
 def test_every_method_of_the_paper_tuning_suites_runs_its_own_settings_as_trial_0(
         suite_file):
@@ -241,6 +242,24 @@ def test_every_method_of_the_paper_tuning_suites_runs_its_own_settings_as_trial_
         tgt = tuning.target(suite, method, None, regs)
         assert tuning.default_params(tgt)[1] == [], method
         assert tuning.moved_defaults(tgt) == [], method
+
+
+def test_every_committed_study_was_drawn_from_its_suites_space_today():
+    """A committed study can be resumed (and so re-checked) with the repository as it is:
+    growing an agent's space must leave the old suite's studies on their own space."""
+    from senbench.tune.space import check_same_space
+
+    regs = registries()
+    databases = sorted((ROOT / "results").glob("*/tune.db"))
+    assert databases
+    for db in databases:
+        suite = load_suite(ROOT / "suites" / f"{db.parent.name}.yaml", regs)
+        url = f"sqlite:///{db}"
+        for summary in optuna.get_all_study_summaries(url):
+            study = optuna.load_study(study_name=summary.study_name, storage=url)
+            tgt = tuning.target(suite, study.user_attrs["method"], study.user_attrs["env"],
+                                regs)
+            check_same_space(study, tgt.space, summary.study_name)
 
 
 @pytest.mark.slow

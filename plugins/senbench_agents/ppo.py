@@ -151,7 +151,9 @@ PPO_SPEC = AgentSpec(
     description="Stable-Baselines3 PPO: MLP actor-critic; NatureCNN under it on pixels",
     min_frame_size=NATURE_CNN_MIN_FRAME,
     precisions=PRECISIONS,
-    # After rl-baselines3-zoo's sample_ppo_params.
+    # After rl-baselines3-zoo's sample_ppo_params, and normalize_reward, which the zoo
+    # sets per env (on for PPO on pixels): it decides whether PPO learns Pendulum's bars
+    # from pixels (suites/controls-ppo-pixels.yaml).
     search_space={
         "learning_rate": Float(1e-5, 3e-3, log=True),
         "n_steps": Choice((256, 512, 1024, 2048)),
@@ -161,5 +163,6 @@ PPO_SPEC = AgentSpec(
         "gae_lambda": Choice((0.8, 0.9, 0.92, 0.95, 0.98, 1.0)),
         "clip_range": Choice((0.1, 0.2, 0.3)),
         "ent_coef": Float(1e-8, 0.1, log=True),
+        "normalize_reward": Choice((False, True)),
     },
 )

@@ -74,6 +74,9 @@ class Target:
     template: Cell
     space: dict[str, Param]
     fixed: dict[str, Any]
+    agent_config: Any = None
+    """The template's agent config: every setting's own value, including those a cell's
+    hyperparams leave out at their defaults (an agent's ``LATE_FIELDS``)."""
 
 
 def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
@@ -105,7 +108,8 @@ def target(suite: Suite, method: str, env: str | None, regs: Any) -> Target:
     if not space:
         raise SuiteError(f"agent '{agent.name}' declares no search space"
                          + (" left once the suite's hyperparams are fixed" if fixed else ""))
-    return Target(suite, method, env, template, space, fixed)
+    return Target(suite, method, env, template, space, fixed,
+                  agent.config(**template.hyperparams))
 
 
 def tune_targets(suite: Suite, methods: list[str] | None, env: str | None, regs: Any, *,
@@ -137,10 +141,10 @@ def tune_targets(suite: Suite, methods: list[str] | None, env: str | None, regs:
 
 
 def own_setting(tgt: Target, name: str) -> Any:
-    """The method's own value of a searched setting: its hyperparams', or its encoder
+    """The method's own value of a searched setting: its agent config's, or its encoder
     config's for an ``encoder.`` name."""
     return (tgt.template.encoder["config"][name.removeprefix(ENCODER)]
-            if name.startswith(ENCODER) else tgt.template.hyperparams[name])
+            if name.startswith(ENCODER) else getattr(tgt.agent_config, name))
 
 
 def default_params(tgt: Target) -> tuple[dict[str, Any], list[str]]:
