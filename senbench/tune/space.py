@@ -48,8 +48,8 @@ def check_same_space(study: Any, space: dict[str, Param], study_name: str) -> No
     done = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
     wanted = distributions(space)
     for trial in study.get_trials(deepcopy=False, states=done):
-        if trial.distributions == wanted:
-            continue
+        if not trial.distributions or trial.distributions == wanted:
+            continue  # a trial pruned before it drew anything says nothing of its space
         had = trial.distributions
         changed = sorted(name for name in set(had) | set(wanted)
                          if had.get(name) != wanted.get(name))
