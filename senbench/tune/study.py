@@ -324,11 +324,11 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     if stored is not None and stored != objective:
         raise SuiteError(f"study '{study_name}' optimises {stored}, not {objective}: pass "
                          f"--objective {stored}, or --study with a new name")
+    check_same_space(study, tgt.space, study_name)  # before the study is written to
     study.set_user_attr("objective", objective)
     study.set_user_attr("suite", tgt.suite.name)
     study.set_user_attr("method", tgt.method)
     study.set_user_attr("env", tgt.env)
-    check_same_space(study, tgt.space, study_name)
     # two processes opening a new study at once would both queue the defaults
     with sqlite_lock(getattr(storage, "url", storage if isinstance(storage, str) else None)):
         enqueue_defaults(study, tgt, log)
