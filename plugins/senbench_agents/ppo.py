@@ -145,7 +145,7 @@ PPO_SPEC = AgentSpec(
         "mountaincar": AgentDefaults(
             values={},
             source="Stable-Baselines3 PPO defaults (zoo's MountainCar-v0 set needs "
-            "VecNormalize, which senbench does not apply)",
+            "VecNormalize on observations, which senbench does not apply)",
         ),
     },
     description="Stable-Baselines3 PPO: MLP actor-critic; NatureCNN under it on pixels",
