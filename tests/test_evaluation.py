@@ -80,8 +80,6 @@ def test_report_shows_the_actions_of_each_method(write_suite, tmp_path):
     assert "0: " in done.stdout and "last" in done.stdout and "500" in done.stdout
 
 
-
-
 def test_epsilon_greedy_evaluation_draws_from_no_generator_training_uses():
     """controls-eval-epsilon pairs its evaluations with controls-pixels' greedy ones on this:
     with ε > 0 the agent still learns exactly as with greedy evaluation, so each evaluation

@@ -74,7 +74,7 @@ class Target:
     template: Cell
     space: dict[str, Param]
     fixed: dict[str, Any]
-    agent_config: Any = None
+    agent_config: Any
     """The template's agent config: every setting's own value, including those a cell's
     hyperparams leave out at their defaults (an agent's ``LATE_FIELDS``)."""
 
