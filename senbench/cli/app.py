@@ -12,6 +12,7 @@ from rich.markup import escape
 
 from senbench.cli.common import FIGURE_HELP, Table, Threshold, err, out, user_errors
 from senbench.cli.encoder_plot_commands import encoder_app, plot_app
+from senbench.cli.verify import verify
 from senbench.errors import SenbenchError
 from senbench.results.outputs import FIGURES, check_out_file
 
@@ -23,6 +24,7 @@ app = typer.Typer(
 )
 app.add_typer(encoder_app, name="encoder")
 app.add_typer(plot_app, name="plot")
+app.command()(verify)
 
 
 def _load(suite_file: Path):

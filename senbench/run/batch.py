@@ -134,18 +134,19 @@ Result = tuple[list[dict[str, Any]], CellOutcome]
 
 
 def execute_cells(cells: list[Cell], info: RunInfo, progress: ProgressCallback | None = None,
-                  done: Callable[[Cell, Result], None] = lambda cell, result: None
-                  ) -> list[Result]:
+                  done: Callable[[Cell, Result], None] = lambda cell, result: None,
+                  stop_at: int | None = None) -> list[Result]:
     """Run cells that share a batch key (seeds of one method) and return each one's rows and
     outcome, in order; ``done`` is called, in the seed's thread, as each one finishes. Cells
-    with ``seed_batch`` 1 run one after another, as alone."""
+    with ``seed_batch`` 1 run one after another, as alone. ``stop_at``: see
+    :func:`execute_cell`."""
     if not cells:
         return []
     size = cells[0].seed_batch
     if size == 1:
         results = []
         for cell in cells:
-            results.append(execute_cell(cell, info, progress))
+            results.append(execute_cell(cell, info, progress, stop_at=stop_at))
             done(cell, results[-1])
         return results
     if len(cells) > size or len({c.batch_key for c in cells}) != 1:
@@ -174,7 +175,8 @@ def execute_cells(cells: list[Cell], info: RunInfo, progress: ProgressCallback |
     def run(slot: int, cell: Cell) -> None:
         try:
             with shared.seat(slot):
-                results[slot] = execute_cell(cell, info, progress, encoder=shared)
+                results[slot] = execute_cell(cell, info, progress, encoder=shared,
+                                             stop_at=stop_at)
         except BaseException as exc:  # noqa: BLE001 - outside the agent: this seed only
             results[slot] = lost_cell(cell, info, f"crashed in its seed batch: {exc!r}")
         with one_at_a_time:

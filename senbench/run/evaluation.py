@@ -106,7 +106,8 @@ def _check(value: Any, what: str, step: int, episode: int, cause: str) -> None:
 
 class CellRecorder:
     """Implements ``senbench.Recorder`` for one cell: collects rows, runs evaluations when
-    due, reports progress, and tells the agent when the budget is spent."""
+    due, reports progress, and tells the agent when the budget is spent (or, with
+    ``stop_at``, when that many frames of it are)."""
 
     def __init__(
         self,
@@ -115,8 +116,10 @@ class CellRecorder:
         evaluate: Callable[[], dict[str, Any]],
         on_progress: Callable[[int, float, float | None, int | None, float | None], None]
         | None = None,
+        stop_at: int | None = None,
     ):
         self.budget = budget
+        self.stop_at = budget if stop_at is None else min(stop_at, budget)
         self.every = every
         self.evaluate = evaluate
         self.on_progress = on_progress
@@ -159,7 +162,7 @@ class CellRecorder:
                             else None)
             self.on_progress(steps, steps / max(now, 1e-9), self.last_eval,
                              self._last_eval_step, train_return)
-        return steps < self.budget
+        return steps < self.stop_at
 
     def episode(self, steps: int, episode_return: float, length: int) -> None:
         episode_return = float(episode_return)

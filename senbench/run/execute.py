@@ -96,14 +96,18 @@ def agent_context(cell: Cell, encoder: Any = None) -> AgentContext:
 
 
 def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = None,
-                 encoder: Any = None) -> tuple[list[dict[str, Any]], CellOutcome]:
+                 encoder: Any = None, stop_at: int | None = None
+                 ) -> tuple[list[dict[str, Any]], CellOutcome]:
     """Run a cell: its result rows, and its outcome. Nothing is written here, so a cell can
     run where the results are not (a Ray worker) and the caller writes them.
 
     ``encoder``: a state encoder the seeds of a batch share (senbench.run.batch), the cell
     running in a thread beside them: the process-wide generators are then left unseeded (a
     batching agent draws from none) and the peak memory is the batch's (reset once, by
-    the batch)."""
+    the batch).
+
+    ``stop_at``: stop after this many frames, the cell's schedules still spanning its
+    budget, so the rows are the first part of the cell's curve (``senbench verify``)."""
     started = datetime.now(UTC)
     alone = encoder is None
     if alone:
@@ -121,9 +125,9 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
         evaluator = Evaluator(ctx.make_env(), cell.eval_episodes, cell.seed, cell.eval_epsilon)
         report = None if progress is None else (lambda *a: progress(cell.id, *a))
         recorder = CellRecorder(cell.budget, cell.eval_every,
-                                lambda: evaluator(agent.act), report)
+                                lambda: evaluator(agent.act), report, stop_at)
         agent.learn(cell.budget, recorder)
-        if recorder.steps < cell.budget:
+        if recorder.steps < min(cell.budget, stop_at or cell.budget):
             raise RuntimeError(f"agent '{cell.agent}' stopped after {recorder.steps} of "
                                f"{cell.budget} frames")
     except KeyboardInterrupt:
