@@ -10,7 +10,6 @@ import json
 import os
 import platform
 import random
-import subprocess
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -28,6 +27,7 @@ from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
 from senbench.results.store import write_cell
 from senbench.run.evaluation import CellRecorder, Evaluator
+from senbench.run.provenance import git_commit
 from senbench.suite.cell import Cell
 
 ProgressCallback = Callable[[str, int, float, float | None, int | None, float | None],
@@ -56,17 +56,9 @@ class RunInfo:
 
         dists = {"senbench": "senbench", "torch": "torch", "gymnasium": "gymnasium",
                  "sb3": "stable-baselines3", "numpy": "numpy"}
-        return cls({k: ver(d) for k, d in dists.items()}, _git_commit(), platform.node(),
+        return cls({k: ver(d) for k, d in dists.items()},
+                   git_commit(Path(encoder_cache).parent), platform.node(),
                    Path(encoder_cache))
-
-
-def _git_commit() -> str | None:
-    try:
-        out = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=40"],
-                             capture_output=True, text=True, timeout=10, check=False)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return out.stdout.strip() or None
 
 
 @dataclass(frozen=True)

@@ -95,6 +95,10 @@ def run_suite(suite: Suite, results_root: str | Path, workers: int | None = None
         progress.warn(f"{workers} workers × {threads} torch threads per cell > "
                       f"{usable_cores()} cores: cells will compete for them")
     info = RunInfo.gather(Path(results_root) / "encoders")
+    if todo and (info.git_commit or "").endswith("-dirty"):
+        progress.warn(f"the working tree has uncommitted changes ({info.git_commit}): these "
+                      "cells' git_commit will name no code that can compute them again; "
+                      "commit first to keep them reproducible (senbench verify checks)")
     claims = CellClaims(directory, force)
     with progress.grid(len(cells), summary.skipped):
         try:
