@@ -10,7 +10,15 @@ from typing import Annotated
 import typer
 from rich.markup import escape
 
-from senbench.cli.common import FIGURE_HELP, Table, Threshold, err, out, user_errors
+from senbench.cli.common import (
+    FIGURE_HELP,
+    Table,
+    Threshold,
+    err,
+    load_suite_file,
+    out,
+    user_errors,
+)
 from senbench.cli.encoder_plot_commands import encoder_app, plot_app
 from senbench.cli.verify import verify
 from senbench.errors import SenbenchError
@@ -27,18 +35,11 @@ app.add_typer(plot_app, name="plot")
 app.command()(verify)
 
 
-def _load(suite_file: Path):
-    from senbench.plugin.manager import registries
-    from senbench.suite import load_suite
-
-    return load_suite(suite_file, registries())
-
-
 @app.command()
 @user_errors
 def validate(suite_file: Annotated[Path, typer.Argument(help="Suite YAML file.")]) -> None:
     """Check a suite file and show the cells it expands into; runs nothing."""
-    suite = _load(suite_file)
+    suite = load_suite_file(suite_file)
     model = suite.model
     variants = {(c.env, c.method, c.variant) for c in suite.cells}
     out.print(
@@ -62,7 +63,7 @@ def status(
     from senbench.results.store import cells_dir
     from senbench.run.status import suite_status
 
-    suite = _load(suite_file)
+    suite = load_suite_file(suite_file)
     if not cells_dir(results, suite.name).is_dir():
         err.print(f"[yellow]warning:[/] {escape(str(cells_dir(results, suite.name)))} does not "
                   "exist: nothing of this suite has run under this results root (--results)",
@@ -119,7 +120,7 @@ def run(
     if address is not None and executor != "ray":
         raise SenbenchError("--address names a Ray cluster: add --executor ray")
     limit_s = None if time_limit is None else parse_duration(time_limit)
-    suite = _load(suite_file)
+    suite = load_suite_file(suite_file)
     cells = suite.select(method or [], env or [], seed or [], variant or [])
     signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # batch schedulers stop jobs this way
     summary = run_suite(suite, results, workers=workers, force=force,
@@ -269,7 +270,7 @@ def tune(
                 else time.monotonic() + parse_duration(time_limit))
     if export is not None:
         check_out_file(export, (".yaml", ".yml"), "--export")
-    suite = _load(suite_file)
+    suite = load_suite_file(suite_file)
     regs = registries()
     targets = tune_targets(suite, method, env, regs, named_study=study is not None,
                            export=export is not None)

@@ -40,6 +40,14 @@ def user_errors(command):
     return wrapper
 
 
+def load_suite_file(suite_file: Path):
+    """A suite file, loaded and validated against the installed plugins."""
+    from senbench.plugin.manager import registries
+    from senbench.suite import load_suite
+
+    return load_suite(suite_file, registries())
+
+
 def warn(message: str) -> None:
     err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False)
 

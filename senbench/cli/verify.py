@@ -9,7 +9,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from senbench.cli.common import err, out, user_errors
+from senbench.cli.common import err, load_suite_file, out, user_errors
 
 OUTCOME_STYLE = {"same": "green", "different": "bold red", "failed": "bold red",
                  "not run": "yellow"}
@@ -37,12 +37,11 @@ def verify(
     """Run the first --frames frames of a suite's finished cells again, one at a time, and
     compare each curve with its result file, row for row. Exit 1 if any differs or fails
     to run; nothing is written."""
-    from senbench.cli.app import _load
     from senbench.results.store import cells_dir
     from senbench.run.execute import RunInfo
     from senbench.run.verify import verify_cells
 
-    suite = _load(suite_file)
+    suite = load_suite_file(suite_file)
     cells = suite.select(method or [], env or [], seed or [], variant or [])
     directory = cells_dir(results, suite.name)
     info = RunInfo.gather(results / "encoders")
