@@ -4,23 +4,41 @@ code that it does not hold.
 ``git describe --dirty`` calls a tree dirty for any change, results included: a run that
 writes its own tracked result files (``--force``), or a docs edit beside a long run, made
 every later run "dirty" though the code was committed. Here only a change that can alter
-what a cell computes counts: a Python file, ``pyproject.toml`` or a constraints file,
-outside the results root (tracked and changed, or new and not ignored).
+what a cell computes counts (tracked and changed, or new and not ignored): a Python file of
+senbench or of a plugin the run loads (their package folders), ``pyproject.toml`` or a
+constraints file. A test, a benchmark or a result file written beside a run does not.
 """
 
 from __future__ import annotations
 
+import importlib
 import subprocess
+import sys
 from pathlib import Path
 
-CODE_FILES = (".py",)
 CODE_NAMES = ("pyproject.toml",)
 CODE_FOLDERS = ("constraints",)
 
 
-def git_commit(results_root: Path) -> str | None:
+def code_paths() -> list[Path]:
+    """Where the code a run executes lives: senbench's package folder and each loaded
+    plugin's (its package folder, or its file for a one-file module)."""
+    import senbench
+    from senbench.plugin import manager
+
+    paths = [Path(senbench.__file__).parent]
+    for name in manager.entry_point_modules() + manager.registered_module_names():
+        module = sys.modules.get(name) or importlib.import_module(name)
+        file = getattr(module, "__file__", None)
+        if file:
+            path = Path(file)
+            paths.append(path.parent if path.name == "__init__.py" else path)
+    return [p.resolve() for p in paths]
+
+
+def git_commit(results_root: Path, code: list[Path] | None = None) -> str | None:
     """The commit checked out where the command runs, with ``-dirty`` appended when code
-    differs from it (see the module's text); None outside a git checkout."""
+    (``code``: default :func:`code_paths`) differs from it; None outside a git checkout."""
     commit = _git("describe", "--always", "--abbrev=40")
     if commit is None:
         return None
@@ -28,16 +46,18 @@ def git_commit(results_root: Path) -> str | None:
     status = _git("status", "--porcelain=v1", "-z", "--untracked-files=all")
     if top is None or status is None:
         return commit
+    code = code_paths() if code is None else [Path(p).resolve() for p in code]
     results = Path(results_root).resolve()
-    changed = [Path(top) / path for path in _paths(status)]
-    if any(is_code(path) and not path.resolve().is_relative_to(results) for path in changed):
+    changed = [(Path(top) / path).resolve() for path in _paths(status)]
+    if any(is_code(path, code) and not path.is_relative_to(results) for path in changed):
         return f"{commit}-dirty"
     return commit
 
 
-def is_code(path: Path) -> bool:
-    return (path.suffix in CODE_FILES or path.name in CODE_NAMES
-            or any(part in CODE_FOLDERS for part in path.parts[-2:-1]))
+def is_code(path: Path, code: list[Path]) -> bool:
+    if path.name in CODE_NAMES or path.parent.name in CODE_FOLDERS:
+        return True
+    return path.suffix == ".py" and any(path == p or path.is_relative_to(p) for p in code)
 
 
 def _paths(status: str) -> list[str]:
