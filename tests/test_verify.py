@@ -6,6 +6,7 @@ from typer.testing import CliRunner
 from senbench.cli.app import app
 from senbench.plugin.manager import registries
 from senbench.run.execute import RunInfo, execute_cell
+from senbench.run.provenance import cpu_description
 from senbench.run.runner import run_suite
 from senbench.suite import load_suite
 
@@ -47,6 +48,7 @@ def test_a_cell_stopped_early_runs_the_first_part_of_its_curve(write_suite, tmp_
     now = pd.DataFrame(rows)
     now = now[now["kind"].isin(["episode", "eval"])][curve]
     assert len(now) >= 7  # 5 episodes of 200 frames and 3 evaluations
+    assert set(full["cpu"]) == {cpu_description()}  # where it ran, to tell a reader
     pd.testing.assert_frame_equal(now.reset_index(drop=True), prefix.reset_index(drop=True))
 
 
@@ -87,3 +89,14 @@ def test_picking_a_seed_the_suite_lacks_is_a_clear_error(write_suite, tmp_path):
     result = verify(path, tmp_path, "--seed", "7")
     assert result.exit_code == 2
     assert "has no seed 7" in result.output
+
+
+def test_a_difference_says_the_committed_processor_is_not_recorded(write_suite, tmp_path):
+    path, suite = ran(write_suite, tmp_path, seeds=[0])
+    file = tmp_path / "results" / "small" / "cells" / f"{suite.cells[0].id}.parquet"
+    table = pd.read_parquet(file).drop(columns=["cpu"])  # a file older than the column
+    table.loc[table.index[table["kind"] == "episode"][0], "length"] = 199.0
+    table.to_parquet(file)
+    result = verify(path, tmp_path, "--seed", "0")
+    assert result.exit_code == 1, result.output
+    assert "processor is not recorded" in result.output

@@ -67,13 +67,15 @@ SCHEMA = pa.schema(
         # seeds that shared the cell's encoder passes (senbench.run.batch); null: alone,
         # in results written before the option
         ("seed_batch", pa.int64()),
+        # the processor (senbench.run.provenance.cpu_description); null in older results
+        ("cpu", pa.string()),
     ]
 )
 
 
 def readable_schema(schema: pa.Schema) -> bool:
     """Whether a file of this schema reads as :data:`SCHEMA`: each of its columns is one of
-    SCHEMA's, of the same type. A column added since (``seed_batch``) reads as null."""
+    SCHEMA's, of the same type. A column added since (``seed_batch``, ``cpu``) reads as null."""
     fields = {field.name: field.type for field in SCHEMA}
     return all(fields.get(field.name) == field.type for field in schema)
 

@@ -27,7 +27,7 @@ from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
 from senbench.results.store import write_cell
 from senbench.run.evaluation import CellRecorder, Evaluator
-from senbench.run.provenance import git_commit
+from senbench.run.provenance import cpu_description, git_commit
 from senbench.suite.cell import Cell
 
 ProgressCallback = Callable[[str, int, float, float | None, int | None, float | None],
@@ -45,6 +45,8 @@ class RunInfo:
     host: str
     encoder_cache: Path = Path("results") / "encoders"
     """Where trained state encoders are kept, shared by every suite under one results root."""
+    cpu: str | None = None
+    """The processor (:func:`senbench.run.provenance.cpu_description`)."""
 
     @classmethod
     def gather(cls, encoder_cache: Path = Path("results") / "encoders") -> RunInfo:
@@ -58,7 +60,7 @@ class RunInfo:
                  "sb3": "stable-baselines3", "numpy": "numpy"}
         return cls({k: ver(d) for k, d in dists.items()},
                    git_commit(Path(encoder_cache).parent), platform.node(),
-                   Path(encoder_cache))
+                   Path(encoder_cache), cpu_description())
 
 
 @dataclass(frozen=True)
@@ -152,7 +154,7 @@ def cell_metadata(cell: Cell, info: RunInfo, status: str, error: str | None,
         "encoder_id": None if request is None else request.id,
         **{f"{k}_version": v for k, v in info.versions.items()},
         "git_commit": info.git_commit, "host": info.host, "threads": cell.threads,
-        "seed_batch": cell.seed_batch,
+        "seed_batch": cell.seed_batch, "cpu": info.cpu,
         "started_at": started, "ended_at": ended, "cell_wall_s": wall,
         "peak_rss_mb": _peak_rss_mb(),
     }

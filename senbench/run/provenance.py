@@ -11,6 +11,7 @@ constraints file. A test, a benchmark or a result file written beside a run does
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import subprocess
 import sys
@@ -27,7 +28,8 @@ def code_paths() -> list[Path]:
     from senbench.plugin import manager
 
     paths = [Path(senbench.__file__).parent]
-    for name in manager.entry_point_modules() + manager.registered_module_names():
+    names = [name for name, _, _ in manager.registered_module_names()]
+    for name in manager.entry_point_modules() + names:
         module = sys.modules.get(name) or importlib.import_module(name)
         file = getattr(module, "__file__", None)
         if file:
@@ -86,3 +88,32 @@ def _git(*args: str) -> str | None:
     if out.returncode != 0:
         return None
     return out.stdout.strip("\n") if args[0] != "status" else out.stdout
+
+
+def cpu_description() -> str | None:
+    """The processor a run computed on: its model, family/model/stepping, the instruction
+    set torch dispatches to, and a digest of its feature flags. The math libraries pick
+    their kernels by these, and kernels differ in their last bits, which a learner's
+    feedback loop grows into another curve: a cell reproduces bit for bit on a machine with
+    the same description, not necessarily on another. None where /proc/cpuinfo is not."""
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return None
+    fields: dict[str, str] = {}
+    for line in text.splitlines():
+        if not line.strip():
+            break  # the first processor's block; the others are the same chip
+        key, _, value = line.partition(":")
+        fields[key.strip()] = value.strip()
+    try:
+        import torch
+
+        capability = torch.backends.cpu.get_cpu_capability()
+    except (ImportError, AttributeError):
+        capability = "?"
+    flags = " ".join(sorted(fields.get("flags", "").split()))
+    digest = hashlib.sha256(flags.encode()).hexdigest()[:8]
+    return (f"{fields.get('model name', '?')} (family {fields.get('cpu family', '?')} "
+            f"model {fields.get('model', '?')} stepping {fields.get('stepping', '?')}), "
+            f"torch {capability}, flags {digest}")

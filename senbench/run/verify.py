@@ -8,6 +8,8 @@ question a reader of committed results asks: does today's code give this curve? 
 each cell's first ``frames`` frames (its schedules still span its budget, so the prefix is
 the one the full run had) and compares every training episode and evaluation that ends
 before the last of them: frame, return, length and the evaluation's spread, exactly.
+A difference says which processors the two ran on: the math libraries' kernels, chosen per
+processor, round differently, and a learner grows that into another curve.
 """
 
 from __future__ import annotations
@@ -77,8 +79,19 @@ def verify_cell(cell: Cell, directory: Path, frames: int, info: RunInfo) -> Verd
     mine = _curve(pd.DataFrame(rows), ran)
     theirs = _curve(committed, ran)
     difference = first_difference(mine, theirs)
+    if difference is not None:
+        difference += _processors(committed, info.cpu)
     return Verdict(cell, "same" if difference is None else "different", frames,
                    min(len(mine), len(theirs)), difference or "", commit)
+
+
+def _processors(committed: pd.DataFrame, now: str | None) -> str:
+    """Whether the committed cell ran on another processor, whose math kernels may round
+    differently (see senbench.run.provenance.cpu_description)."""
+    then = committed["cpu"].iloc[0] if "cpu" in committed.columns else None
+    if then is None or (isinstance(then, float) and math.isnan(then)):
+        return "; the committed run's processor is not recorded"
+    return "" if then == now else f"; committed on {then}, now on {now}"
 
 
 def _curve(table: pd.DataFrame, before: int) -> list[tuple[Any, ...]]:
