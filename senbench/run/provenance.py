@@ -30,7 +30,12 @@ def code_paths() -> list[Path]:
     paths = [Path(senbench.__file__).parent]
     names = [name for name, _, _ in manager.registered_module_names()]
     for name in manager.entry_point_modules() + names:
-        module = sys.modules.get(name) or importlib.import_module(name)
+        module = sys.modules.get(name)
+        if module is None:
+            try:
+                module = importlib.import_module(name)
+            except ImportError:  # registered in a notebook: no file, no checkout to read
+                continue
         file = getattr(module, "__file__", None)
         if file:
             path = Path(file)
