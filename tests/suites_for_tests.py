@@ -1,5 +1,17 @@
 """Suite texts that several test modules use."""
 
+# Tile-coded SARSA on the state: three cells of a second or so, 3 episodes each.
+SARSA = """\
+name: small
+envs:
+  mountaincar: {}
+methods:
+  sarsa-state: {agent: sarsa}
+seeds: 3
+budget: 1500
+eval: {every: 500, episodes: 2}
+"""
+
 # SEN-SARSA with an encoder small enough to train in seconds: an indented `methods:` entry.
 SEN_SARSA = """\
   sen-sarsa:

@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 CELLS = [  # suite, method, env, seed, frames
     ("controls-state", "dqn-state", "mountaincar", 0, 6000),
-    ("paper-pendulum", "ppo-state", "pendulum", 0, 9000),
+    ("controls-state", "ppo-state", "pendulum", 0, 9000),
     ("paper-mountaincar", "sarsa-state", "mountaincar", 0, 6000),
     ("controls-sac", "sac-state", "pendulum", 4, 1500),
     ("controls-pixels", "dqn-pixels", "mountaincar-bars", 1, 11000),

@@ -10,24 +10,13 @@ import psutil
 import pyarrow.parquet as pq
 import pytest
 from curves import curves_of
-from suites_for_tests import SLOW
+from suites_for_tests import SARSA, SLOW
 
 from senbench.errors import SenbenchError
 from senbench.plugin.manager import registries
 from senbench.results.store import SCHEMA, current_cells, finished_status, read_results
 from senbench.run.runner import run_suite
 from senbench.suite import load_suite
-
-SARSA = """\
-name: small
-envs:
-  mountaincar: {}
-methods:
-  sarsa-state: {agent: sarsa}
-seeds: 3
-budget: 1500
-eval: {every: 500, episodes: 2}
-"""
 
 
 def run(write_suite, tmp_path, text, **kwargs):

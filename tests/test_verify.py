@@ -1,6 +1,7 @@
 """senbench verify: a finished cell's first frames run again and compared with its file."""
 
 import pandas as pd
+from suites_for_tests import SARSA
 from typer.testing import CliRunner
 
 from senbench.cli.app import app
@@ -9,17 +10,6 @@ from senbench.run.execute import RunInfo, execute_cell
 from senbench.run.provenance import cpu_description
 from senbench.run.runner import run_suite
 from senbench.suite import load_suite
-
-SARSA = """\
-name: small
-envs:
-  mountaincar: {}
-methods:
-  sarsa-state: {agent: sarsa}
-seeds: 2
-budget: 1500
-eval: {every: 500, episodes: 2}
-"""
 
 
 def ran(write_suite, tmp_path, seeds=None):
@@ -56,7 +46,7 @@ def test_results_that_reproduce_are_same_and_exit_0(write_suite, tmp_path):
     path, _ = ran(write_suite, tmp_path)
     result = verify(path, tmp_path)
     assert result.exit_code == 0, result.output
-    assert "2 same, 0 different or failed" in result.output
+    assert "3 same, 0 different or failed" in result.output
     assert not list((tmp_path / "results").rglob("*.tmp*"))
 
 
@@ -70,7 +60,7 @@ def test_a_curve_that_moved_is_different_names_where_and_exits_1(write_suite, tm
     table.to_parquet(file)
     result = verify(path, tmp_path)
     assert result.exit_code == 1, result.output
-    assert "1 same, 1 different or failed" in result.output
+    assert "2 same, 1 different or failed" in result.output
     step = int(table.loc[third, "step"])
     assert f"episode ending at frame {step:,}" in result.output
     assert "different" in result.output
@@ -80,7 +70,7 @@ def test_a_cell_with_no_result_is_not_run_and_the_rest_are_checked(write_suite, 
     path, _ = ran(write_suite, tmp_path, seeds=[0])
     result = verify(path, tmp_path)
     assert result.exit_code == 0, result.output
-    assert "1 same, 0 different or failed, 1 with no finished result" in result.output
+    assert "1 same, 0 different or failed, 2 with no finished result" in result.output
     assert "no result file" in result.output
 
 

@@ -12,6 +12,10 @@ from rich.markup import escape
 
 from senbench.cli.common import (
     FIGURE_HELP,
+    PickEnvs,
+    PickMethods,
+    PickSeeds,
+    PickVariants,
     Table,
     Threshold,
     err,
@@ -90,15 +94,10 @@ def run(
     retries: Annotated[int, typer.Option(
         min=0, help="With --executor ray: how often a cell whose worker died is retried "
                     "before it is recorded as failed.")] = 2,
-    method: Annotated[list[str] | None, typer.Option(
-        help="Run only this method's cells (repeat for several).")] = None,
-    env: Annotated[list[str] | None, typer.Option(
-        help="Run only this env's cells (repeat for several).")] = None,
-    seed: Annotated[list[int] | None, typer.Option(
-        help="Run only this seed's cells (repeat for several).")] = None,
-    variant: Annotated[list[str] | None, typer.Option(
-        help="Run only this variant's cells, as the report names it, e.g. "
-             "encoder.fraction=0.5 (repeat for several).")] = None,
+    method: PickMethods = None,
+    env: PickEnvs = None,
+    seed: PickSeeds = None,
+    variant: PickVariants = None,
     time_limit: Annotated[str | None, typer.Option(
         help="Start a cell only if it is expected to end within this time of the run's "
              "start (2h30m, 150m, 90s), at the mean of the finished cells of its env, method "

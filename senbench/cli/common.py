@@ -60,3 +60,14 @@ Threshold = Annotated[list[str] | None, typer.Option(
          "env's: -150 (results of one env) or mountaincar=-150 (repeat for several envs).")]
 
 
+
+# A part of a suite's grid, for the commands that run cells (run, verify).
+PickMethods = Annotated[list[str] | None, typer.Option(
+    "--method", help="Only this method's cells (repeat for several).")]
+PickEnvs = Annotated[list[str] | None, typer.Option(
+    "--env", help="Only this env's cells (repeat for several).")]
+PickSeeds = Annotated[list[int] | None, typer.Option(
+    "--seed", help="Only this seed's cells (repeat for several).")]
+PickVariants = Annotated[list[str] | None, typer.Option(
+    "--variant", help="Only this variant's cells, as the report names it, e.g. "
+    "encoder.fraction=0.5 (repeat for several).")]

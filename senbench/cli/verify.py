@@ -9,7 +9,16 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from senbench.cli.common import err, load_suite_file, out, user_errors
+from senbench.cli.common import (
+    PickEnvs,
+    PickMethods,
+    PickSeeds,
+    PickVariants,
+    err,
+    load_suite_file,
+    out,
+    user_errors,
+)
 
 OUTCOME_STYLE = {"same": "green", "different": "bold red", "failed": "bold red",
                  "not run": "yellow"}
@@ -24,15 +33,10 @@ def verify(
                     "evaluation that ends before the last of them is compared.")],
     results: Annotated[Path, typer.Option(help="Results root the suite ran under.")]
     = Path("results"),
-    method: Annotated[list[str] | None, typer.Option(
-        help="Only this method's cells (repeat for several).")] = None,
-    env: Annotated[list[str] | None, typer.Option(
-        help="Only this env's cells (repeat for several).")] = None,
-    seed: Annotated[list[int] | None, typer.Option(
-        help="Only this seed's cells (repeat for several).")] = None,
-    variant: Annotated[list[str] | None, typer.Option(
-        help="Only this variant's cells, as the report names it (repeat for several).")
-    ] = None,
+    method: PickMethods = None,
+    env: PickEnvs = None,
+    seed: PickSeeds = None,
+    variant: PickVariants = None,
 ) -> None:
     """Run the first --frames frames of a suite's finished cells again, one at a time, and
     compare each curve with its result file, row for row. Exit 1 if any differs or fails
