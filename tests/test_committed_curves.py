@@ -26,7 +26,7 @@ from senbench.suite import load_suite
 ROOT = Path(__file__).resolve().parents[1]
 
 CELLS = [  # suite, method, env, seed, frames
-    ("controls-state", "dqn-state", "mountaincar", 0, 6000),
+    ("controls-state", "ddqn-state", "mountaincar", 2, 15000),
     ("controls-state", "ppo-state", "pendulum", 0, 9000),
     ("paper-mountaincar", "sarsa-state", "mountaincar", 0, 6000),
     ("controls-sac", "sac-state", "pendulum", 4, 1500),
