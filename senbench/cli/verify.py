@@ -76,8 +76,8 @@ def verify(
 
 
 def _commit(described: str | None) -> str:
-    """A result file's git_commit, short: 12 hex digits, and 'dirty' when the working tree
-    had changes (then no commit holds the code that ran)."""
+    """A result file's git_commit, short: 12 hex digits, and 'dirty' when its code differed
+    from that commit (then no commit holds the code that ran)."""
     if not described:
         return ""
     return described[:12] + (" dirty" if described.endswith("-dirty") else "")

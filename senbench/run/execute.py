@@ -121,9 +121,10 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
         recorder = CellRecorder(cell.budget, cell.eval_every,
                                 lambda: evaluator(agent.act), report, stop_at)
         agent.learn(cell.budget, recorder)
-        if recorder.steps < min(cell.budget, stop_at or cell.budget):
+        wanted = min(cell.budget, stop_at or cell.budget)
+        if recorder.steps < wanted:
             raise RuntimeError(f"agent '{cell.agent}' stopped after {recorder.steps} of "
-                               f"{cell.budget} frames")
+                               f"{wanted} frames")
     except KeyboardInterrupt:
         raise  # an interrupted cell writes nothing
     except BaseException as exc:  # a cell's failure, even sys.exit, must not stop the grid
