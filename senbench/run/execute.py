@@ -45,8 +45,6 @@ class RunInfo:
     host: str
     encoder_cache: Path = Path("results") / "encoders"
     """Where trained state encoders are kept, shared by every suite under one results root."""
-    cpu: str | None = None
-    """The processor (:func:`senbench.run.provenance.cpu_description`)."""
 
     @classmethod
     def gather(cls, encoder_cache: Path = Path("results") / "encoders") -> RunInfo:
@@ -60,7 +58,7 @@ class RunInfo:
                  "sb3": "stable-baselines3", "numpy": "numpy"}
         return cls({k: ver(d) for k, d in dists.items()},
                    git_commit(Path(encoder_cache).parent), platform.node(),
-                   Path(encoder_cache), cpu_description())
+                   Path(encoder_cache))
 
 
 @dataclass(frozen=True)
@@ -155,7 +153,8 @@ def cell_metadata(cell: Cell, info: RunInfo, status: str, error: str | None,
         "encoder_id": None if request is None else request.id,
         **{f"{k}_version": v for k, v in info.versions.items()},
         "git_commit": info.git_commit, "host": info.host, "threads": cell.threads,
-        "seed_batch": cell.seed_batch, "cpu": info.cpu,
+        "seed_batch": cell.seed_batch,
+        "cpu": cpu_description(),  # where the cell runs (a Ray node may differ)
         "started_at": started, "ended_at": ended, "cell_wall_s": wall,
         "peak_rss_mb": _peak_rss_mb(),
     }

@@ -11,6 +11,7 @@ constraints file. A test, a benchmark or a result file written beside a run does
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import subprocess
@@ -50,10 +51,14 @@ def git_commit(results_root: Path, code: list[Path] | None = None) -> str | None
     if commit is None:
         return None
     top = _git("rev-parse", "--show-toplevel")
-    status = _git("status", "--porcelain=v1", "-z", "--untracked-files=all")
-    if top is None or status is None:
+    if top is None:
         return commit
     code = code_paths() if code is None else [Path(p).resolve() for p in code]
+    inside = [str(p) for p in code if p.is_relative_to(Path(top).resolve())]
+    status = _git("status", "--porcelain=v1", "-z", "--untracked-files=all", "--",
+                  *inside, ":(top,glob)**/pyproject.toml", ":(top,glob)**/constraints/*")
+    if status is None:
+        return commit
     results = Path(results_root).resolve()
     changed = [(Path(top) / path).resolve() for path in _paths(status)]
     if any(is_code(path, code) and not path.is_relative_to(results) for path in changed):
@@ -95,6 +100,7 @@ def _git(*args: str) -> str | None:
     return out.stdout.strip("\n") if args[0] != "status" else out.stdout
 
 
+@functools.cache
 def cpu_description() -> str | None:
     """The processor a run computed on: its model, family/model/stepping, the instruction
     set torch dispatches to, and a digest of its feature flags. The math libraries pick

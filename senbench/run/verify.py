@@ -26,6 +26,7 @@ from senbench.results.store import cell_path, finished_status
 from senbench.run.batch import execute_cells
 from senbench.run.execute import RunInfo
 from senbench.run.processes import set_threads
+from senbench.run.provenance import cpu_description
 from senbench.suite.cell import Cell
 
 COMPARED = ("kind", "step", "return", "length", "return_std")
@@ -80,7 +81,7 @@ def verify_cell(cell: Cell, directory: Path, frames: int, info: RunInfo) -> Verd
     theirs = _curve(committed, ran)
     difference = first_difference(mine, theirs)
     if difference is not None:
-        difference += _processors(committed, info.cpu)
+        difference += _processors(committed, cpu_description())
     return Verdict(cell, "same" if difference is None else "different", frames,
                    min(len(mine), len(theirs)), difference or "", commit)
 
