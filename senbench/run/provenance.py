@@ -18,9 +18,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-CODE_NAMES = ("pyproject.toml",)
-CODE_FOLDERS = ("constraints",)
-
 
 def code_paths() -> list[Path]:
     """Where the code a run executes lives: senbench's package folder and each loaded
@@ -46,47 +43,26 @@ def code_paths() -> list[Path]:
 
 def git_commit(results_root: Path, code: list[Path] | None = None) -> str | None:
     """The commit checked out where the command runs, with ``-dirty`` appended when code
-    (``code``: default :func:`code_paths`) differs from it; None outside a git checkout."""
+    (``code``: default :func:`code_paths`) differs from it; None outside a git checkout.
+    git itself is asked about the code files only, so any entry it lists is a change."""
     commit = _git("describe", "--always", "--abbrev=40")
     if commit is None:
         return None
     top = _git("rev-parse", "--show-toplevel")
     if top is None:
         return commit
+    root = Path(top).resolve()
     code = code_paths() if code is None else [Path(p).resolve() for p in code]
-    inside = [str(p) for p in code if p.is_relative_to(Path(top).resolve())]
-    status = _git("status", "--porcelain=v1", "-z", "--untracked-files=all", "--",
-                  *inside, ":(top,glob)**/pyproject.toml", ":(top,glob)**/constraints/*")
+    specs = [f":(glob){p}/**/*.py" if p.is_dir() else str(p)
+             for p in code if p.is_relative_to(root)]
+    results = Path(results_root).resolve()
+    if results.is_relative_to(root):
+        specs.append(f":(exclude){results}")
+    status = _git("status", "--porcelain", "--untracked-files=all", "--", *specs,
+                  ":(top,glob)**/pyproject.toml", ":(top,glob)**/constraints/*")
     if status is None:
         return commit
-    results = Path(results_root).resolve()
-    changed = [(Path(top) / path).resolve() for path in _paths(status)]
-    if any(is_code(path, code) and not path.is_relative_to(results) for path in changed):
-        return f"{commit}-dirty"
-    return commit
-
-
-def is_code(path: Path, code: list[Path]) -> bool:
-    if path.name in CODE_NAMES or path.parent.name in CODE_FOLDERS:
-        return True
-    return path.suffix == ".py" and any(path == p or path.is_relative_to(p) for p in code)
-
-
-def _paths(status: str) -> list[str]:
-    """The paths of ``git status --porcelain -z``: each entry 'XY path', a rename followed
-    by its old path as an entry of its own (both count)."""
-    paths, entries = [], status.split("\0")
-    index = 0
-    while index < len(entries):
-        entry = entries[index]
-        index += 1
-        if len(entry) < 4:
-            continue
-        paths.append(entry[3:])
-        if entry[0] in "RC" and index < len(entries):
-            paths.append(entries[index])
-            index += 1
-    return paths
+    return f"{commit}-dirty" if status else commit
 
 
 def _git(*args: str) -> str | None:
@@ -97,7 +73,7 @@ def _git(*args: str) -> str | None:
         return None
     if out.returncode != 0:
         return None
-    return out.stdout.strip("\n") if args[0] != "status" else out.stdout
+    return out.stdout.strip()
 
 
 @functools.cache
