@@ -13,14 +13,14 @@ methods are checked by `senbench verify` where their encoders are."""
 
 from pathlib import Path
 
-import pyarrow.parquet as pq
+import pandas as pd
 import pytest
 
 from senbench.plugin.manager import registries
 from senbench.results.store import cell_path
 from senbench.run.execute import RunInfo
 from senbench.run.provenance import cpu_description
-from senbench.run.verify import verify_cells
+from senbench.run.verify import committed_cpu, verify_cells
 from senbench.suite import load_suite
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,10 +43,8 @@ def test_a_committed_curve_comes_out_of_todays_code(suite_name, method, env, see
     suite = load_suite(ROOT / "suites" / f"{suite_name}.yaml", registries())
     [cell] = suite.select([method], [env], [seed])
     folder = ROOT / "results" / suite_name / "cells"
-    committed = pq.read_table(cell_path(folder, cell.id), columns=["cpu"]
-                              if "cpu" in pq.read_schema(cell_path(folder, cell.id)).names
-                              else []).to_pylist()
-    then, now = (committed[0].get("cpu") if committed else None), cpu_description()
+    then = committed_cpu(pd.read_parquet(cell_path(folder, cell.id)))
+    now = cpu_description()
     if then != now:
         pytest.skip(f"computed on {then or 'an unrecorded processor'}; this is {now}")
     [verdict] = verify_cells([cell], folder, frames,

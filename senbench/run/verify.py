@@ -86,11 +86,18 @@ def verify_cell(cell: Cell, directory: Path, frames: int, info: RunInfo) -> Verd
                    min(len(mine), len(theirs)), difference or "", commit)
 
 
+def committed_cpu(committed: pd.DataFrame) -> str | None:
+    """The processor a result file's cell ran on; None where the file predates the
+    column."""
+    then = committed["cpu"].iloc[0] if "cpu" in committed.columns else None
+    return None if then is None or (isinstance(then, float) and math.isnan(then)) else then
+
+
 def _processors(committed: pd.DataFrame, now: str | None) -> str:
     """Whether the committed cell ran on another processor, whose math kernels may round
     differently (see senbench.run.provenance.cpu_description)."""
-    then = committed["cpu"].iloc[0] if "cpu" in committed.columns else None
-    if then is None or (isinstance(then, float) and math.isnan(then)):
+    then = committed_cpu(committed)
+    if then is None:
         return "; the committed run's processor is not recorded"
     return "" if then == now else f"; committed on {then}, now on {now}"
 
