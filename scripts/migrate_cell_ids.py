@@ -11,7 +11,9 @@
 3. Labels. Where the results folder holds its suite's ``suite.yaml``, each file's ``config``
    column gets the labels senbench now records with a cell (the labelled frames an encoded
    method's encoder was trained on, and how they were obtained); what the cell computes is
-   checked to be the same (its id).
+   checked to be the same (its id). So it is also how a label added to a suite after its
+   cells ran (a ``references:`` entry, say) reaches them: edit the suite and its results
+   folder's ``suite.yaml`` alike, and run it on that folder.
 
 Nothing else in a file changes. It is idempotent: a file already in the current layout is
 left alone.
@@ -73,7 +75,7 @@ def migrate(root: Path, apply: bool) -> int:
                 continue
             changed += 1
             print(f"{cells / old}.parquet -> {new}.parquet"
-                  + ("" if current else ", with the action columns (empty)")
+                  + ("" if current else ", in today's columns (those it lacks empty)")
                   + (", with the suite's labels" if relabel else ""))
             if apply:
                 table = set_column(table, "cell_id", new)
