@@ -27,8 +27,9 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
+
+from encoder_speed import rate
 
 SETTINGS: dict[str, dict[str, str]] = {
     "default": {},
@@ -52,21 +53,17 @@ def digest(*tensors) -> str:
     return h.hexdigest()[:12]
 
 
-def per_call_ms(call, seconds: float = 2.0) -> float:
-    call()
-    calls, start = 0, time.perf_counter()
-    while (elapsed := time.perf_counter() - start) < seconds:
-        call()
-        calls += 1
-    return 1000 * elapsed / calls
+def per_call_ms(call) -> float:
+    return 1000 / rate(1, call)
 
 
 def frame0_returns() -> dict[str, str]:
-    from senbench.cli.common import load_suite_file
+    from senbench.plugin.manager import registries
     from senbench.run.batch import execute_cells
     from senbench.run.execute import RunInfo
+    from senbench.suite import load_suite
 
-    suite = load_suite_file(ROOT / "suites" / "paper-pendulum.yaml")
+    suite = load_suite(ROOT / "suites" / "paper-pendulum.yaml", registries())
     info = RunInfo.gather(ROOT / "results" / "encoders")
     out = {}
     for method in ("ppo-state", "ppo-pixels"):

@@ -60,7 +60,6 @@ Threshold = Annotated[list[str] | None, typer.Option(
          "env's: -150 (results of one env) or mountaincar=-150 (repeat for several envs).")]
 
 
-
 # A part of a suite's grid, for the commands that run cells (run, verify).
 PickMethods = Annotated[list[str] | None, typer.Option(
     "--method", help="Only this method's cells (repeat for several).")]
