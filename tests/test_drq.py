@@ -194,6 +194,24 @@ def test_drq_sac_samples_m_times_k_rows_and_trains_on_them(monkeypatch):
                                                      strict=True))
 
 
+@pytest.mark.parametrize("interval", [1, 2, 3])
+def test_sac_moves_its_targets_every_interval_updates_over_the_run(interval):
+    # SB3 counts the interval within one train() call: at one update a call, every one
+    learner = pixel_learner("drq-sac", target_update_interval=interval, batch_size=4)
+    model = learner.model
+    for i in range(20):
+        model.replay_buffer.add(frames(1, i).numpy(), frames(1, i + 100).numpy(),
+                                np.array([[0.5]]), np.array([float(i)]), np.array([False]), [{}])
+    moved = []
+    for _ in range(6):
+        before = [p.clone() for p in model.critic_target.parameters()]
+        model.train(gradient_steps=1, batch_size=4)
+        moved.append(any(not torch.equal(a, b) for a, b in
+                         zip(before, model.critic_target.parameters(), strict=True)))
+    assert moved == [i % interval == 0 for i in range(6)]
+    assert model.tau == 0.01  # restored after the updates that leave the targets
+
+
 # --- validation -------------------------------------------------------------------------
 
 

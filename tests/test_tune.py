@@ -14,6 +14,7 @@ from suites_for_tests import SEN_SARSA
 
 from senbench.cli.views import trials_table
 from senbench.plugin.manager import registries
+from senbench.plugin.specs import Float, Int
 from senbench.suite import load_suite
 from senbench.tune import study as tuning
 from senbench.tune.export import best_block
@@ -58,6 +59,7 @@ def test_a_study_runs_resumes_and_exports_a_block_a_suite_runs(tmp_path):
     assert done.returncode == 0, done.stderr
     trials = study_of(tmp_path).trials
     assert len(trials) == 3  # resumed: one more, not three more
+    assert trials[2].params != trials[1].params  # not the first run's random draw again
     assert {t.params.keys().__len__() for t in trials} == {3}  # tilings is fixed by the suite
     block = yaml.safe_load((tmp_path / "best.yaml").read_text())
     hyperparams = block["sarsa-state"]["hyperparams"]
@@ -191,6 +193,26 @@ def test_a_study_runs_the_methods_own_settings_first_and_again_if_killed(write_s
     logged, study = [], optuna.create_study(direction="maximize")
     tuning.enqueue_defaults(study, tgt, logged.append)
     assert study.trials == [] and "n_steps 1024 not among [256, 512]" in logged[0]
+
+
+def test_a_resumed_study_draws_new_trials_and_the_same_state_draws_the_same():
+    space = {"alpha": Float(0.05, 1.0), "tiles": Int(4, 12)}
+
+    def run_once(study, seed):  # one trial per run, as a study resumed across sessions
+        study.sampler = tuning.make_sampler("tpe", seed, held=len(study.trials))
+        trial = study.ask()
+        study.tell(trial, tuning.suggest(trial, space)["alpha"])
+
+    study, twin = optuna.create_study(), optuna.create_study()
+    for _ in range(4):
+        run_once(study, 0), run_once(twin, 0)
+    drawn = [tuple(t.params.values()) for t in study.trials]
+    assert len(set(drawn)) == 4  # seeded as the first run, each run drew that run's trial
+    assert drawn == [tuple(t.params.values()) for t in twin.trials]
+    other = optuna.create_study()
+    run_once(other, 1)
+    assert tuple(other.trials[0].params.values()) != drawn[0]
+    assert tuning.make_sampler("random", None, held=3) is not None  # unseeded: no offset
 
 
 def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_suite):

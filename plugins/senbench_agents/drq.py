@@ -135,7 +135,7 @@ def sb3_classes() -> tuple[type, type, type]:
                 else:
                     total = total + q.max(dim=1).values
             value = (total / self.k).repeat(self.m)
-            out = th.full((value.shape[0], q.shape[1]), -th.inf, dtype=q.dtype)
+            out = th.full((value.shape[0], q.shape[1]), -th.inf, dtype=q.dtype, device=q.device)
             out[:, 0] = value
             return out
 

@@ -14,7 +14,8 @@ mean of squares, so its gradient on those rows,
 is the gradient of DrQ's loss, 1/(B M) Σ_{i,m} (Q(shift_m(s_i), a_i) − ȳ_i)², with the target
 averaged over K shifts (its equations 1 and 3). The actor and the temperature learn on the
 same shifted frames, averaged over the M shifts (DrQ's actor uses the first). At K = M = 1
-this is DrQ's update exactly; at larger K, M it costs M·K rows where DrQ spends M + K.
+this is DrQ's loss exactly (not its networks: see :data:`DRQ_SIZED`); at larger K, M it
+costs M·K rows where DrQ spends M + K.
 Acting, in training and in evaluation, sees the frames unshifted.
 """
 
@@ -63,7 +64,8 @@ class SACConfig:
     """The entropy temperature α: a number, "auto" (learned, from 1) or "auto_<x>" (learned,
     from x)."""
     target_update_interval: PositiveInt = 1
-    """Updates between target critic updates."""
+    """Updates between target critic updates, counted over the run (SB3 counts them within
+    one ``train`` call, where this would be ignored at one update a call)."""
     use_sde: bool = False
     """State-dependent exploration."""
     net_arch: Annotated[list[PositiveInt], Field(min_length=1)] = field(
@@ -90,7 +92,8 @@ from benchmarks/drq_sizing.py): batch 64 (DrQ: 512 in the paper, 128 in its code
 runs at 0.52x the frames/s here); one update every 4 frames (DrQ updates once per agent
 step, which at its default action repeat of 4 is the same ratio; senbench has no action
 repeat); K = M = 1 (DrQ: 2, at 0.25x the frames/s here); SB3's NatureCNN, one per
-network (DrQ: one 4-layer CNN shared by actor and critic, the actor's gradient stopped);
+network, each trained by its network's loss (DrQ: one 4-layer CNN shared by actor and
+critic, the actor's gradient stopped at it);
 the actor updated at every update (DrQ: every 2)."""
 
 
@@ -157,17 +160,46 @@ def augmented_samples() -> type:
     return AugmentedSamples
 
 
+@cache
+def periodic_target_sac() -> type:
+    """SB3's SAC with ``target_update_interval`` counted over all the run's updates, as
+    DrQ's ``critic_target_update_frequency`` is. SB3's ``SAC.train`` counts it within one
+    call (``gradient_step % target_update_interval``), so at one update a call — every
+    setting here — its targets move at every update whatever the interval. At interval 1
+    this is SB3's SAC unchanged."""
+    from stable_baselines3 import SAC
+
+    class PeriodicTargetSAC(SAC):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.updates = 0
+
+        def train(self, gradient_steps: int, batch_size: int = 64) -> None:
+            if self.target_update_interval == 1:
+                super().train(gradient_steps, batch_size)
+                return
+            tau = self.tau
+            try:  # one update a call; at τ 0 SB3's Polyak step leaves the targets exact
+                for _ in range(gradient_steps):
+                    due = self.updates % self.target_update_interval == 0
+                    self.tau = tau if due else 0.0
+                    super().train(1, batch_size)
+                    self.updates += 1
+            finally:
+                self.tau = tau
+
+    return PeriodicTargetSAC
+
+
 class SACAgent:
     def __init__(self, ctx: AgentContext):
-        from stable_baselines3 import SAC
-
         cfg: SACConfig = ctx.config
         venv = monitored_vec_env(ctx, 1)
         pixels = is_frame_stack(venv.observation_space)
         policy_kwargs = {"net_arch": list(cfg.net_arch), "optimizer_kwargs": {"fused": True}}
         if pixels:
             policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}
-        self.model = with_precision(SAC, ctx.precision)(
+        self.model = with_precision(periodic_target_sac(), ctx.precision)(
             "CnnPolicy" if pixels else "MlpPolicy", venv,
             learning_rate=cfg.learning_rate, buffer_size=cfg.buffer_size,
             learning_starts=cfg.learning_starts, batch_size=cfg.batch_size, tau=cfg.tau,

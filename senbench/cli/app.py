@@ -285,7 +285,7 @@ def tune(
         done = run_study(  # the storage is opened only once all is checked
             tgt, trials=trials, seeds=seeds, objective=objective,
             storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
-            sampler=make_sampler(sampler, seed), pruner=make_pruner(pruner, tgt),
+            sampler=sampler, seed=seed, pruner=make_pruner(pruner, tgt),
             results_root=results, workers=processes, regs=regs,
             log=lambda message: err.print(escape(message), highlight=False),
             deadline=deadline)

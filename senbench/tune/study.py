@@ -264,9 +264,14 @@ def sqlite_lock(url: str | None) -> Iterator[None]:
         yield
 
 
-def make_sampler(name: str, seed: int | None) -> Any:
+def make_sampler(name: str, seed: int | None, held: int = 0) -> Any:
+    """The ``--sampler`` for a study that already holds ``held`` trials, seeded with
+    ``seed + held``: a resumed study seeded as its first run was would draw that run's
+    random draws again (TPE draws its first 10 trials at random), trials that only repeat
+    ones the study holds. The same study state and seed still give the same draws."""
     import optuna
 
+    seed = None if seed is None else seed + held
     if name == "tpe":
         return optuna.samplers.TPESampler(seed=seed)
     if name == "random":
@@ -308,18 +313,19 @@ def fits(study: Any, deadline: float | None) -> bool:
 
 
 def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: Any,
-              study_name: str, sampler: Any, pruner: Any, results_root: Path, workers: int,
-              regs: Any, log: Any, deadline: float | None = None) -> Any:
+              study_name: str, sampler: str, seed: int | None, pruner: Any,
+              results_root: Path, workers: int, regs: Any, log: Any,
+              deadline: float | None = None) -> Any:
     """The study, run until it holds ``trials`` finished or pruned trials, or until the
-    next trial is not expected to end before ``deadline`` (``--time-limit``)."""
+    next trial is not expected to end before ``deadline`` (``--time-limit``). ``sampler``
+    and ``seed``: :func:`make_sampler`'s, seeded after the trials the study holds."""
     import optuna
-
 
     check_objective(objective)
     optuna.logging.set_verbosity(optuna.logging.WARNING)  # senbench logs each trial itself
-    study = optuna.create_study(study_name=study_name, storage=storage, sampler=sampler,
-                                pruner=pruner, direction=OBJECTIVES[objective],
-                                load_if_exists=True)
+    study = optuna.create_study(study_name=study_name, storage=storage, pruner=pruner,
+                                direction=OBJECTIVES[objective], load_if_exists=True)
+    study.sampler = make_sampler(sampler, seed, held=len(study.trials))
     stored = study.user_attrs.get("objective")
     if stored is not None and stored != objective:
         raise SuiteError(f"study '{study_name}' optimises {stored}, not {objective}: pass "
