@@ -55,6 +55,22 @@ def test_probability_of_improvement_per_metric_worked_by_hand(tmp_path):
         "final", "p_high"]
 
 
+def test_cells_the_suite_lists_without_a_result_are_counted_and_a_bad_list_is_an_error(
+        tmp_path):
+    from senbench.errors import ResultsError
+
+    folder = write_fake(tmp_path, "cmp", ["a"])
+    manifest = folder / "cells.json"
+    ids = json.loads(manifest.read_text())["cells"]
+    manifest.write_text(json.dumps({"cells": ids + ["not-run-yet-0", "not-run-yet-1"]}))
+    results = read_results(folder)
+    assert results.attrs["missing"] == 2 and results.attrs["stale"] == 0
+    manifest.write_text('{"cells": ["a0')  # cut short: never read as "no list"
+    with pytest.raises(ResultsError, match="cells.json: not a cell list senbench wrote"):
+        read_results(folder)
+    assert read_results(folder, include_stale=True)["cell_id"].nunique() == 4  # --all
+
+
 def test_report_summary_has_iqm_intervals_and_mean_std(tmp_path):
     summary = summarize(read_results(write_fake(tmp_path, "cmp", ["a", "b"])))
     a = summary.set_index("method").loc["a"]

@@ -395,6 +395,11 @@ def test_encoder_train_takes_the_configs_a_suite_sets_and_checks_them_the_same_w
                  "--arch-config 'first_stride': write KEY=VALUE"):
         assert part in refused.output.replace("\n", " "), refused.output
     assert not any(tmp_path.iterdir())  # nothing trained, nothing written
+    small = train("--arch", "nature-cnn")  # 32x32 frames: a suite's validation refuses it
+    assert small.exit_code == 2 and ("nature-cnn' needs frames of at least 36x36, got 32x32; "
+                                     "pass --height 36 --width 36") in small.output
+    assert train("--learning-rate", "0").exit_code == 2
+    assert not any(tmp_path.iterdir())
 
     trained = train("--arch-config", "widths=[4, 4, 8, 8]", "--arch-config", "hidden=8",
                     "--sampler", "rollout", "--sampler-config", "repeat=2")

@@ -143,6 +143,27 @@ BAD = {
                                      "greater than or equal to 1 (got 0)"]),
     "a boolean for a count": (GOOD.replace("alpha: 0.8", "alpha: 0.8, tiles: true"),
                               ["hyperparams.tiles", "expected int"]),
+    "a number as a string": (GOOD.replace("threshold: -120", 'threshold: "-120"'),
+                             ["envs.mountaincar.threshold", "valid number"]),
+    "a boolean for a number": (GOOD.replace("every: 1000, episodes: 2",
+                                            "every: 1000, episodes: 2, epsilon: true"),
+                               ["eval.epsilon", "valid number"]),
+    "an infinite hyperparameter": (GOOD.replace("alpha: 0.8", "alpha: .inf"),
+                                   ["hyperparams.alpha", "finite number, got inf"]),
+    "a NaN env option": (GOOD.replace("{max_episode_steps: 300, threshold: -120}",
+                                      "{max_episode_steps: 300, options: {goal_velocity: .nan}}"),
+                         ["envs.mountaincar.options.goal_velocity", "a finite float"]),
+    "a negative gradient clip": (GOOD.replace("    observation: state\n",
+                                              "    observation: state\n"
+                                              "    hyperparams: {max_grad_norm: -1.0}\n"),
+                                 ["hyperparams.max_grad_norm", "greater than 0"]),
+    "a negative entropy bonus": (GOOD.replace("    observation: state\n",
+                                              "    observation: state\n"
+                                              "    hyperparams: {ent_coef: -5.0}\n"),
+                                 ["hyperparams.ent_coef", "greater than or equal to 0"]),
+    "a reference on an env the method does not run on": (
+        GOOD + "references:\n  sarsa-state:\n    pendulum: {value: -150, source: x}\n",
+        ["references.sarsa-state.pendulum", "sarsa-state does not run on pendulum"]),
     "self-referencing alias": (GOOD.replace("name: grid", "name: grid\ndescription: &a [*a]"),
                                ["description", "valid string"]),
 }

@@ -49,7 +49,7 @@ class DQNConfig:
     exploration_fraction: Probability = 0.1
     exploration_initial_eps: Probability = 1.0
     exploration_final_eps: Probability = 0.05
-    max_grad_norm: float = 10.0
+    max_grad_norm: PositiveFloat = 10.0
     net_arch: list[PositiveInt] = field(default_factory=list)
     """Hidden layers of the Q head (after the CNN on pixels; the whole MLP on the state)."""
     features_dim: PositiveInt = 512

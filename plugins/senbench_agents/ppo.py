@@ -16,7 +16,7 @@ from pydantic import Field
 from pydantic.dataclasses import dataclass
 
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
-from senbench_agents.ranges import PositiveFloat, PositiveInt, Probability
+from senbench_agents.ranges import NonNegativeFloat, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
     NATURE_CNN_MIN_FRAME,
     PRECISIONS,
@@ -39,12 +39,14 @@ class PPOConfig:
     gamma: Probability = 0.99
     gae_lambda: Probability = 0.95
     clip_range: PositiveFloat = 0.2
-    ent_coef: float = 0.0
-    vf_coef: float = 0.5
-    max_grad_norm: float = 0.5
+    ent_coef: NonNegativeFloat = 0.0
+    vf_coef: NonNegativeFloat = 0.5
+    max_grad_norm: PositiveFloat = 0.5
+    """Gradients are clipped to this norm (a negative one would turn them around)."""
     use_sde: bool = False
     """State-dependent exploration (continuous actions only)."""
-    sde_sample_freq: int = -1
+    sde_sample_freq: Annotated[int, Field(ge=-1)] = -1
+    """Frames between new exploration noise matrices (-1: only at a rollout's start)."""
     net_arch: Annotated[list[PositiveInt], Field(min_length=1)] = field(
         default_factory=lambda: [64, 64])
     """Hidden layer widths of the actor and of the critic (after the CNN on pixels)."""

@@ -181,6 +181,9 @@ def report(
     if results.attrs.get("stale"):
         err.print(f"left out {results.attrs['stale']} cells of earlier versions of the suite "
                   "(--all includes them)")
+    if results.attrs.get("missing"):
+        err.print(f"{results.attrs['missing']} cells of the suite have no result yet: the "
+                  "table counts the seeds that have one (`senbench run` runs the rest)")
 
 
 @app.command()
@@ -232,7 +235,9 @@ def tune(
     )] = None,
     sampler: Annotated[str, typer.Option(help="tpe or random.")] = "tpe",
     pruner: Annotated[str, typer.Option(help="median, hyperband or none.")] = "median",
-    seed: Annotated[int | None, typer.Option(help="The sampler's seed.")] = None,
+    seed: Annotated[int | None, typer.Option(
+        help="The sampler's seed; a resumed study draws from it plus the trials it holds.")
+    ] = None,
     workers: Annotated[int, typer.Option(min=0, help="Processes per trial (0: one per "
                                          "seed, all at once, so that the pruner sees every "
                                          "seed at each evaluation early).")] = 0,
@@ -326,7 +331,7 @@ def show(
     frames: Annotated[int, typer.Option(min=1, max=32, help="States to show.")] = 8,
     height: Annotated[int, typer.Option(min=8, max=512)] = 64,
     width: Annotated[int, typer.Option(min=8, max=512)] = 64,
-    seed: Annotated[int, typer.Option(help="Seed of the sampled states.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the sampled states.")] = 0,
 ) -> None:
     """Sample frames of an env, with gymnasium's frame for the same state beside each."""
     from senbench.cli.show import save_comparison

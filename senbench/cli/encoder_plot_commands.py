@@ -62,7 +62,15 @@ def encoder_train(
     from senbench.plugin.manager import registries
     regs = registries()
     regs.envs.get(env), regs.encoders.get(arch), regs.samplers.get(sampler)
+    if not learning_rate > 0:
+        raise SenbenchError(f"--learning-rate must be above 0, got {learning_rate}")
     configs = checked_configs(regs, arch, sampler, arch_config or [], sampler_config or [])
+    spec = regs.encoders.get(arch)  # as a suite's validation checks it, before any sampling
+    smallest = spec.min_frame_size_for(spec.config(**configs["arch_config"]))
+    if smallest and min(height, width) < smallest:
+        raise SenbenchError(f"encoder '{arch}' needs frames of at least {smallest}x{smallest}, "
+                            f"got {height}x{width}; pass --height {max(height, smallest)} "
+                            f"--width {max(width, smallest)} or more, or another --arch")
     request = EncoderRequest(
         env=env, pixels=PixelSpec(height, width, stack), arch=arch, sampler=sampler,
         samples=samples, fraction=fraction, seed=seed, **configs,

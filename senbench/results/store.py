@@ -116,10 +116,18 @@ def write_manifest(suite_dir: Path, cell_ids: list[str]) -> None:
 
 
 def current_cells(suite_dir: Path) -> set[str] | None:
+    """The cell ids of the suite's current definition, or None where no run wrote them (a
+    tuning trial's folder). A manifest that cannot be read is an error: read as missing,
+    it would let cells of an earlier suite count as current."""
+    path = suite_dir / MANIFEST
     try:
-        return set(json.loads((suite_dir / MANIFEST).read_text())["cells"])
-    except (OSError, ValueError, KeyError, TypeError):
+        return set(json.loads(path.read_text())["cells"])
+    except FileNotFoundError:
         return None
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ResultsError(f"{path}: not a cell list senbench wrote ({type(exc).__name__}: "
+                           f"{exc}); run the suite again to rewrite it (finished cells are "
+                           "kept), or delete it to read every cell there") from None
 
 
 def cell_row(path: Path, columns: list[str]) -> dict[str, Any] | None:
@@ -198,15 +206,17 @@ def find_cell_files(path: str | Path) -> list[Path]:
 def read_results(path: str | Path, include_stale: bool = False) -> pd.DataFrame:
     """All rows of the cells under ``path`` as one DataFrame. Cells that a suite's current
     definition no longer has (see MANIFEST) are left out unless ``include_stale``; the
-    frame's ``attrs["stale"]`` counts them."""
+    frame's ``attrs["stale"]`` counts them, and ``attrs["missing"]`` the cells of the
+    current definitions with no result yet."""
     files = find_cell_files(path)
-    stale = 0
+    stale = missing = 0
     if not include_stale:
         keep = []
-        for f in files:
-            ids = current_cells(f.parent.parent)
-            if ids is None or f.stem in ids:
-                keep.append(f)
+        for suite_dir in sorted({f.parent.parent for f in files}):
+            ids = current_cells(suite_dir)
+            mine = [f for f in files if f.parent.parent == suite_dir]
+            keep += [f for f in mine if ids is None or f.stem in ids]
+            missing += len((ids or set()) - {f.stem for f in mine})
         stale = len(files) - len(keep)
         files = keep
         if not files:
@@ -220,5 +230,5 @@ def read_results(path: str | Path, include_stale: bool = False) -> pd.DataFrame:
             raise ResultsError(f"{f}: not a senbench cell result ({exc}); move it out of "
                                "the results folder") from None
     frame = pa.concat_tables(tables).to_pandas()
-    frame.attrs["stale"] = stale
+    frame.attrs["stale"], frame.attrs["missing"] = stale, missing
     return frame

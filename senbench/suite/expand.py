@@ -150,10 +150,16 @@ def _expand(model: SuiteModel, source: SuiteSource, regs: Registries, problems: 
             problem(("references", method_name),
                     unknown_name_message("method", method_name, list(model.methods)))
             continue
+        runs_on = model.methods[method_name].envs or list(model.envs)
         for env_name in by_env:
             if env_name not in model.envs:
                 problem(("references", method_name, env_name),
                         unknown_name_message("suite env", env_name, list(model.envs)))
+            elif env_name not in runs_on:  # it could never be read beside a result
+                problem(("references", method_name, env_name),
+                        f"{method_name} does not run on {env_name} (its envs: "
+                        f"{', '.join(runs_on)}); key the reference by one of them, or add "
+                        f"{env_name} to the method's envs")
     check_tune(model, regs, problem)
     cells: list[Cell] = []
     for method_name, method in model.methods.items():
@@ -284,7 +290,8 @@ def _check_envs(model: SuiteModel, regs: Registries, problem) -> dict[str, tuple
             if key not in spec.options:
                 problem(loc, unknown_name_message(f"{env_name} option", key, list(spec.options)))
             elif not fits(value, spec.options[key]):
-                problem(loc, f"expected {spec.options[key].__name__}, got {value!r}")
+                finite = "a finite " if spec.options[key] is float else ""
+                problem(loc, f"expected {finite}{spec.options[key].__name__}, got {value!r}")
         budget = entry.budget or model.budget
         if model.eval.every > budget:
             problem(("eval", "every"), f"evaluates every {model.eval.every} frames but the "

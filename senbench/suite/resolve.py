@@ -5,6 +5,7 @@ value strictly against its field's type and declared range, each problem at its 
 from __future__ import annotations
 
 import dataclasses
+import math
 import reprlib
 import typing
 from typing import Any
@@ -73,6 +74,10 @@ def _resolve_dataclass(config_cls, what: str, params: dict[str, Any], where,
                     f"unknown {what} '{key}': {what.rsplit(' ', 1)[0]} has none")
             ok = False
             continue
+        if isinstance(value, float) and not math.isfinite(value):
+            problem(where(key), f"expected a finite number, got {value}")  # no field wants one
+            ok = False
+            continue
         try:
             values[key] = pydantic.TypeAdapter(hints[key]).validate_python(value, strict=True)
         except pydantic.ValidationError as exc:
@@ -126,7 +131,8 @@ def _type_name(annotation: Any) -> str:
 
 def fits(value: Any, expected: type) -> bool:
     if expected is float:
-        return isinstance(value, int | float) and not isinstance(value, bool)
+        return (isinstance(value, int | float) and not isinstance(value, bool)
+                and math.isfinite(value))
     return isinstance(value, expected)
 
 

@@ -1,7 +1,7 @@
 """The schema of a suite file, as pydantic models: every key, its type, its default.
 
-Unknown keys are errors (``extra="forbid"``), counts are strict (no "2000", no true), so a
-typo or a wrong type never silently becomes a default.
+Unknown keys are errors (``extra="forbid"``), counts and numbers are strict (no "2000", no
+"0.2", no true) and finite, so a typo or a wrong type never silently becomes a default.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ Seed = Annotated[int, Field(strict=True, ge=0, lt=2**32)]
 class EnvEntry(StrictModel):
     max_episode_steps: Count | None = None
     """Episode cap in steps; the env's own default when absent."""
-    threshold: Annotated[float, Field(allow_inf_nan=False)] | None = None
+    threshold: Annotated[float, Field(strict=True, allow_inf_nan=False)] | None = None
     """Evaluation return that counts as solved; the env's default when absent."""
     budget: Count | None = None
     """Frames (environment steps) per cell on this env; the suite's budget when absent."""
@@ -50,15 +50,16 @@ class EncoderEntry(StrictModel):
     sampler_config: dict[str, Any] = {}
     samples: Count = EncoderRequest.samples
     """Labelled (frames, state) pairs in the pool."""
-    fraction: Annotated[float, Field(gt=0, le=1)] = EncoderRequest.fraction
+    fraction: Annotated[float, Field(strict=True, gt=0, le=1)] = EncoderRequest.fraction
     """Share of the pool used for training: the paper's d% as a fraction."""
     seed: Seed = EncoderRequest.seed
     """The encoder's own seed: cells of every RL seed share one encoder."""
     epochs: Count = Training.epochs
     batch_size: Annotated[int, Field(strict=True, ge=2)] = Training.batch_size
-    learning_rate: Annotated[float, Field(gt=0, allow_inf_nan=False)] = Training.learning_rate
+    learning_rate: Annotated[float, Field(strict=True, gt=0, allow_inf_nan=False)] = (
+        Training.learning_rate)
     patience: Count = Training.patience
-    lr_decay: Annotated[float, Field(gt=0, le=1)] = Training.lr_decay
+    lr_decay: Annotated[float, Field(strict=True, gt=0, le=1)] = Training.lr_decay
     test_samples: Count = Training.test_samples
 
 
@@ -91,7 +92,7 @@ class EvalEntry(StrictModel):
     """Frames between evaluations."""
     episodes: Count = 10
     """Deterministic episodes per evaluation."""
-    epsilon: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.0
+    epsilon: Annotated[float, Field(strict=True, ge=0, le=1, allow_inf_nan=False)] = 0.0
     """Probability of a uniformly random action at each evaluation step (ε-greedy
     evaluation; the DQN literature uses 0.05). The same for every method of the suite, and
     recorded in each cell's config."""
@@ -101,8 +102,8 @@ class TuneRange(StrictModel):
     """A narrower search range than the agent declares: ``low``/``high`` for a number,
     ``values`` (a subset) for a choice."""
 
-    low: Annotated[float, Field(allow_inf_nan=False)] | None = None
-    high: Annotated[float, Field(allow_inf_nan=False)] | None = None
+    low: Annotated[float, Field(strict=True, allow_inf_nan=False)] | None = None
+    high: Annotated[float, Field(strict=True, allow_inf_nan=False)] | None = None
     values: Annotated[list[Any], Field(min_length=1)] | None = None
 
 
@@ -110,9 +111,9 @@ class ReferenceEntry(StrictModel):
     """A published final return that a method must reproduce on an env: a positive
     control. ``report`` puts it beside the method's own and says whether it passes."""
 
-    value: Annotated[float, Field(allow_inf_nan=False)]
+    value: Annotated[float, Field(strict=True, allow_inf_nan=False)]
     """The published mean return."""
-    spread: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 0.0
+    spread: Annotated[float, Field(strict=True, ge=0, allow_inf_nan=False)] = 0.0
     """Its published ± (e.g. the standard deviation over evaluation episodes)."""
     source: Annotated[str, Field(min_length=1)]
     """Where the number is published: table, row, version."""
