@@ -71,6 +71,17 @@ def test_cells_the_suite_lists_without_a_result_are_counted_and_a_bad_list_is_an
     assert read_results(folder, include_stale=True)["cell_id"].nunique() == 4  # --all
 
 
+def test_compare_refuses_a_method_against_itself_and_names_a_missing_folder(tmp_path):
+    from senbench.analysis.compare import pairs_for
+    from senbench.errors import ResultsError
+
+    folder = write_fake(tmp_path, "cmp", ["a", "b"])
+    with pytest.raises(ResultsError, match="A and B are both a"):
+        pairs_for("a", "a", folder, False, {})
+    with pytest.raises(ResultsError, match=f"no folder {tmp_path}/gone; name two"):
+        pairs_for(str(folder), f"{tmp_path}/gone", None, False, {})
+
+
 def test_report_summary_has_iqm_intervals_and_mean_std(tmp_path):
     summary = summarize(read_results(write_fake(tmp_path, "cmp", ["a", "b"])))
     a = summary.set_index("method").loc["a"]

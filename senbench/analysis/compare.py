@@ -132,14 +132,18 @@ def comparison_table(pairs: list[tuple[str, Side, Side]]) -> pd.DataFrame:
 def pairs_for(a: str, b: str, results: Path | None, include_stale: bool,
               thresholds: dict[str | None, float]) -> list[tuple[str, Side, Side]]:
     """What ``senbench compare A B`` compares: two methods of ``results``, or two folders."""
+    if a == b and (results is not None or Path(a).is_dir()):
+        raise ResultsError(f"A and B are both {a}: compare two methods, or two folders")
     if results is not None:
         return pairs_in_one_folder(results, a, b, include_stale=include_stale,
                                    thresholds=thresholds)
     if Path(a).is_dir() and Path(b).is_dir():
         return pairs_across_folders(Path(a), Path(b), include_stale=include_stale,
                                     thresholds=thresholds)
-    raise ResultsError("name two results folders, or two methods and the folder that holds "
-                       "them: senbench compare sen-sarsa sarsa-state --results "
+    absent = [x for x in (a, b) if "/" in x and not Path(x).exists()]
+    said = f"no folder {', '.join(absent)}; " if absent else ""
+    raise ResultsError(f"{said}name two results folders, or two methods and the folder that "
+                       "holds them: senbench compare sen-sarsa sarsa-state --results "
                        "results/paper-mountaincar")
 
 
