@@ -11,7 +11,7 @@ from rich.markup import escape
 
 from senbench.cli.common import FIGURE_HELP, Threshold, err, out, user_errors
 from senbench.encoders.request import EncoderRequest, Training
-from senbench.errors import SenbenchError
+from senbench.errors import ResultsError, SenbenchError
 from senbench.results.outputs import FIGURES, check_out_file
 
 encoder_app = typer.Typer(help="State encoders: train, inspect.", no_args_is_help=True)
@@ -147,6 +147,8 @@ def plot_curves_command(
     from senbench.cli.plots import plot_curves
     from senbench.results.store import read_results
 
+    if not results_dir.is_dir():
+        raise ResultsError(f"{results_dir}: no such results folder")
     png = png or results_dir / "curves.png"
     check_out_file(png, FIGURES)
     results = with_thresholds(read_results(results_dir, include_stale=all_cells),
