@@ -210,9 +210,50 @@ def test_a_resumed_study_draws_new_trials_and_the_same_state_draws_the_same():
     assert len(set(drawn)) == 4  # seeded as the first run, each run drew that run's trial
     assert drawn == [tuple(t.params.values()) for t in twin.trials]
     other = optuna.create_study()
-    run_once(other, 1)
-    assert tuple(other.trials[0].params.values()) != drawn[0]
+    run_once(other, 1)  # --seed 1 on a new study: not --seed 0 resumed after one trial
+    assert tuple(other.trials[0].params.values()) not in drawn[:2]
     assert tuning.make_sampler("random", None, held=3) is not None  # unseeded: no offset
+
+
+def test_a_failed_trial_does_not_leave_the_study_short_and_a_resume_keeps_its_budget(
+        write_suite, tmp_path, monkeypatch):
+    # Optuna counts a failed trial against n_trials; the study must still end with 3
+    suite = load_suite(write_suite(SUITE), registries())
+    tgt = tuning.target(suite, "sarsa-state", None, registries())
+    calls = []
+
+    def value(directory, objective, cell_ids):  # the first trial's cells fail, not the rest
+        calls.append(directory)
+        if len(calls) == 1:
+            raise RuntimeError("1 of the trial's cells failed")
+        return -100.0 - len(calls)
+
+    monkeypatch.setattr(tuning, "run_processes", lambda *args: None)
+    monkeypatch.setattr(tuning, "objective_value", value)
+    storage = optuna.storages.InMemoryStorage()
+
+    def run(name, trials, seeds=1, pruner="none"):
+        return tuning.run_study(tgt, trials=trials, seeds=seeds, objective="auc",
+                                storage=storage, study_name=name, sampler="random", seed=0,
+                                pruner=tuning.make_pruner(pruner, tgt), results_root=tmp_path,
+                                workers=1, regs=registries(), log=lambda message: None)
+
+    study = run("s", 3)
+    states = [t.state.name for t in study.trials]
+    assert states == ["FAIL", "COMPLETE", "COMPLETE", "COMPLETE"]
+    # resumed with another budget per trial: refused, nothing run
+    for seeds, pruner, what in ((2, "none", "seeds 1, not 2"),
+                                (1, "median", "pruner NopPruner, not MedianPruner")):
+        with pytest.raises(tuning.SuiteError, match=what):
+            run("s", 4, seeds, pruner)
+    assert len(study.trials) == 4
+
+    def always_fails(*args):
+        raise RuntimeError("every trial fails")
+
+    monkeypatch.setattr(tuning, "objective_value", always_fails)
+    study = run("t", 2)
+    assert [t.state.name for t in study.trials] == ["FAIL", "FAIL"]  # gives up, no loop
 
 
 def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_suite):
@@ -587,10 +628,22 @@ def test_train_return_ranks_trials_whose_evaluations_all_score_the_same(tmp_path
         (tmp_path / name / "cells.json").write_text(json.dumps({"cells": ids}))
         return tmp_path / name
 
+    def value(directory, objective):
+        return tuning.objective_value(directory, objective,
+                                      [f"{directory.name}{seed:015d}" for seed in (0, 1)])
+
     stuck = trial("stuck", [[-1000.0, -1000.0], [-1000.0]])
     learning = trial("learning", [[-1000.0, -300.0], [-200.0, -400.0]])
-    assert tuning.objective_value(stuck, "auc") == tuning.objective_value(learning, "auc")
-    assert tuning.objective_value(stuck, "train-return") == -1000.0
-    assert tuning.objective_value(learning, "train-return") == (-650.0 + -300.0) / 2
+    assert value(stuck, "auc") == value(learning, "auc")
+    assert value(stuck, "train-return") == -1000.0
+    assert value(learning, "train-return") == (-650.0 + -300.0) / 2
     with pytest.raises(RuntimeError, match="no seed of the trial has a train-return"):
-        tuning.objective_value(trial("none", [[], []]), "train-return")
+        value(trial("none", [[], []]), "train-return")
+    # only the trial's own cells count: another trial's file left in the folder does not
+    (stuck / "cells.json").unlink()  # a trial's folder has no cell list
+    for other in (learning / "cells").glob("*.parquet"):
+        (stuck / "cells" / other.name).write_bytes(other.read_bytes())
+    assert value(stuck, "train-return") == -1000.0
+    with pytest.raises(RuntimeError, match="1 of the trial's 3 cells have no result"):
+        tuning.objective_value(stuck, "auc", ["stuck" + "0" * 15, "stuck" + "1".zfill(15),
+                                              "gone"])

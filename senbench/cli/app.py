@@ -236,7 +236,7 @@ def tune(
     sampler: Annotated[str, typer.Option(help="tpe or random.")] = "tpe",
     pruner: Annotated[str, typer.Option(help="median, hyperband or none.")] = "median",
     seed: Annotated[int | None, typer.Option(
-        help="The sampler's seed; a resumed study draws from it plus the trials it holds.")
+        help="The sampler's seed; a resumed study draws from it and the trials it holds.")
     ] = None,
     workers: Annotated[int, typer.Option(min=0, help="Processes per trial (0: one per "
                                          "seed, all at once, so that the pruner sees every "

@@ -21,15 +21,11 @@ killed is marked failed by the next process that starts, instead of staying RUNN
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import dataclasses
-import fcntl
 import os
 import platform
-import time
 import warnings
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,6 +39,17 @@ from senbench.run.progress import NullProgress
 from senbench.run.runner import prepare_encoders
 from senbench.run.summary import RunSummary
 from senbench.suite import Cell, Suite
+from senbench.tune.optuna_parts import (  # noqa: F401 - re-exported
+    GRACE_S,
+    HEARTBEAT_S,
+    fits,
+    make_pruner,
+    make_sampler,
+    sqlite_lock,
+    storage_for,
+    trial_counts,
+    trial_seconds,
+)
 from senbench.tune.space import check_same_space, suggest
 from senbench.tune.trial import PruningProgress, objective_value  # noqa: F401 - re-exported
 
@@ -55,8 +62,6 @@ OBJECTIVES = {"auc": "maximize", "final": "maximize", "steps-to-threshold": "min
 has signal where every evaluation of a short trial scores the same (a greedy pixel DQN on
 MountainCar plays one action from the start states and scores -1,000 for 100k frames and
 more while its training episodes reach the flag: REPRODUCTION.md, Positive controls)."""
-HEARTBEAT_S = 30
-GRACE_S = 90
 
 
 def check_objective(objective: str) -> None:
@@ -219,99 +224,6 @@ def trial_cells(tgt: Target, params: dict[str, Any], seeds: int, regs: Any) -> l
                                  seed=TUNE_SEED_OFFSET + i) for i in range(seeds)]
 
 
-def storage_for(url: str | None, default_file: Path) -> Any:
-    """An Optuna storage: RDB URLs (SQLite included) with heartbeats, so that a killed
-    trial is marked failed rather than left RUNNING; other URLs as Optuna reads them."""
-    import optuna
-
-    if url is None:
-        default_file.parent.mkdir(parents=True, exist_ok=True)
-        url = f"sqlite:///{default_file}"
-    scheme = url.split(":", 1)[0].split("+", 1)[0]
-    if scheme in {"sqlite", "postgresql", "mysql", "oracle", "mssql"}:
-        import sqlalchemy.exc
-
-        warnings.filterwarnings("ignore", category=optuna.exceptions.ExperimentalWarning)
-        def create() -> Any:
-            return optuna.storages.RDBStorage(
-                url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_S,
-                engine_kwargs={"connect_args": {"timeout": 60}} if scheme == "sqlite" else None)
-
-        if scheme == "sqlite" and url.startswith("sqlite:///"):
-            # Two processes creating a new database's tables at once collide: the first
-            # creates them under a lock, the second then finds them.
-            with sqlite_lock(url):
-                return create()
-        for attempt in range(10):  # a server database: retry the same collision
-            try:
-                return create()
-            except sqlalchemy.exc.SQLAlchemyError:
-                if attempt == 9:
-                    raise
-                time.sleep(0.2 + 0.3 * attempt)
-    return url
-
-
-@contextlib.contextmanager
-def sqlite_lock(url: str | None) -> Iterator[None]:
-    """Held by one process at a time per SQLite file (``url``), across processes; a no-op
-    for other storages."""
-    if not (url or "").startswith("sqlite:///"):
-        yield
-        return
-    with open(Path(url[len("sqlite:///"):] + ".lock"), "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        yield
-
-
-def make_sampler(name: str, seed: int | None, held: int = 0) -> Any:
-    """The ``--sampler`` for a study that already holds ``held`` trials, seeded with
-    ``seed + held``: a resumed study seeded as its first run was would draw that run's
-    random draws again (TPE draws its first 10 trials at random), trials that only repeat
-    ones the study holds. The same study state and seed still give the same draws."""
-    import optuna
-
-    seed = None if seed is None else seed + held
-    if name == "tpe":
-        return optuna.samplers.TPESampler(seed=seed)
-    if name == "random":
-        return optuna.samplers.RandomSampler(seed=seed)
-    raise SuiteError(f"--sampler must be tpe or random, got {name!r}")
-
-
-def make_pruner(name: str, tgt: Target) -> Any:
-    import optuna
-
-    every = tgt.template.eval_every
-    budget = tgt.template.budget
-    if name == "median":
-        # as rl-baselines3-zoo: no pruning in the first 5 trials nor the first third of a
-        # trial, where returns still say little (MountainCar sits at -200 early on)
-        return optuna.pruners.MedianPruner(n_startup_trials=5,
-                                           n_warmup_steps=max(every, budget // 3))
-    if name == "hyperband":
-        return optuna.pruners.HyperbandPruner(min_resource=every, max_resource=budget)
-    if name == "none":
-        return optuna.pruners.NopPruner()
-    raise SuiteError(f"--pruner must be median, hyperband or none, got {name!r}")
-
-
-def trial_seconds(study: Any) -> float | None:
-    """Mean wall time of the study's finished (not pruned) trials: what the next may take."""
-    import optuna
-
-    spans = [(t.datetime_complete - t.datetime_start).total_seconds()
-             for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))
-             if t.datetime_start and t.datetime_complete]
-    return sum(spans) / len(spans) if spans else None
-
-
-def fits(study: Any, deadline: float | None) -> bool:
-    """Whether another trial is expected to end before ``deadline`` (time.monotonic());
-    a study with no finished trial yet has no estimate, and starts one."""
-    return deadline is None or time.monotonic() + (trial_seconds(study) or 0.0) <= deadline
-
-
 def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: Any,
               study_name: str, sampler: str, seed: int | None, pruner: Any,
               results_root: Path, workers: int, regs: Any, log: Any,
@@ -331,10 +243,21 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
         raise SuiteError(f"study '{study_name}' optimises {stored}, not {objective}: pass "
                          f"--objective {stored}, or --study with a new name")
     check_same_space(study, tgt.space, study_name)  # before the study is written to
-    study.set_user_attr("objective", objective)
-    study.set_user_attr("suite", tgt.suite.name)
-    study.set_user_attr("method", tgt.method)
-    study.set_user_attr("env", tgt.env)
+    # what makes its trials comparable: a resume with other seeds, frames, evaluations or
+    # pruner would rank trials that did not have the same budget (studies from before
+    # these were kept take them from their next run)
+    budget = {"seeds": seeds, "frames": tgt.template.budget,
+              "eval_every": tgt.template.eval_every,
+              "eval_episodes": tgt.template.eval_episodes, "pruner": type(pruner).__name__}
+    for key, value in budget.items():
+        if study.user_attrs.get(key, value) != value:
+            raise SuiteError(f"study '{study_name}' ran its trials with {key} "
+                             f"{study.user_attrs[key]}, not {value}: resume it as it ran "
+                             "(--seeds, the suite's budget and eval, --pruner), or tune "
+                             "these settings as a new study with --study NAME")
+    for key, value in {"objective": objective, "suite": tgt.suite.name, "method": tgt.method,
+                       "env": tgt.env, **budget}.items():
+        study.set_user_attr(key, value)
     # two processes opening a new study at once would both queue the defaults
     with sqlite_lock(getattr(storage, "url", storage if isinstance(storage, str) else None)):
         enqueue_defaults(study, tgt, log)
@@ -369,7 +292,7 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
         if summary.failed:
             raise RuntimeError(f"{len(summary.failed)} cells failed: "
                                f"{summary.failed[0].error}")
-        value = objective_value(directory.parent, objective)
+        value = objective_value(directory.parent, objective, [c.id for c in cells])
         named = " (the defaults)" if trial.user_attrs.get("defaults") else ""
         log(f"trial {trial.number}{named}: {objective} {value:,.1f}")
         return value
@@ -378,20 +301,16 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
         if not fits(study, deadline):
             study.stop()
 
-    already = len(study.get_trials(deepcopy=False, states=counted))
-    if already < trials and fits(study, deadline):
+    # Optuna counts a failed trial against n_trials, so a failure would leave the study
+    # short of --trials: go on until it holds them, at most --trials failures in this run.
+    def failed_here() -> int:
+        return sum(t.state == optuna.trial.TrialState.FAIL
+                   and t.user_attrs.get("pid") == os.getpid() for t in study.trials)
+
+    while True:
+        already = len(study.get_trials(deepcopy=False, states=counted))
+        if already >= trials or not fits(study, deadline) or failed_here() >= trials:
+            return study
         study.optimize(run_trial, n_trials=trials - already, catch=(RuntimeError,),
                        callbacks=[optuna.study.MaxTrialsCallback(trials, states=counted),
                                   stop_at_deadline])
-    return study
-
-
-def trial_counts(study: Any) -> dict[str, int]:
-    """How many of the study's trials finished, were pruned, failed or are running."""
-    import optuna
-
-    states = optuna.trial.TrialState
-    return {s.name.lower(): sum(t.state == s for t in study.trials)
-            for s in (states.COMPLETE, states.PRUNED, states.FAIL, states.RUNNING)}
-
-

@@ -67,8 +67,15 @@ class PruningProgress:
                 raise optuna.TrialPruned(f"pruned at frame {step:,} (seed mean {value:.1f})")
 
 
-def objective_value(directory: Path, objective: str) -> float:
+def objective_value(directory: Path, objective: str, cell_ids: list[str]) -> float:
+    """The mean over the trial's seeds (``cell_ids``, each of which must have a result) of
+    the objective. Only those cells: a file another trial left in the folder (a study
+    name used again after its storage was deleted) must not count."""
     cells = per_cell(read_results(directory))
+    cells = cells[cells["cell_id"].isin(cell_ids)]
+    if len(cells) != len(set(cell_ids)):
+        raise RuntimeError(f"{len(set(cell_ids)) - len(cells)} of the trial's "
+                           f"{len(set(cell_ids))} cells have no result; see {directory}")
     failed = cells[cells["status"] != "ok"]
     if len(failed):
         raise RuntimeError(f"{len(failed)} of the trial's cells failed; see {directory}")
