@@ -375,8 +375,10 @@ def test_a_trial_fits_before_a_deadline_at_the_mean_of_the_finished_ones():
 
 @pytest.mark.slow
 def test_a_killed_trial_is_marked_failed_by_the_next_process(tmp_path, monkeypatch):
-    monkeypatch.setattr(tuning, "HEARTBEAT_S", 1)
-    monkeypatch.setattr(tuning, "GRACE_S", 2)
+    from senbench.tune import optuna_parts
+
+    monkeypatch.setattr(optuna_parts, "HEARTBEAT_S", 1)
+    monkeypatch.setattr(optuna_parts, "GRACE_S", 2)
     storage = tuning.storage_for(None, tmp_path / "tune.db")
     study = optuna.create_study(study_name="s", storage=storage)
     orphan = study.ask()  # a process that started this trial and was then killed
