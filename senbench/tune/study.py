@@ -40,8 +40,6 @@ from senbench.run.runner import prepare_encoders
 from senbench.run.summary import RunSummary
 from senbench.suite import Cell, Suite
 from senbench.tune.optuna_parts import (  # noqa: F401 - re-exported
-    GRACE_S,
-    HEARTBEAT_S,
     fits,
     make_pruner,
     make_sampler,
