@@ -272,6 +272,13 @@ def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_sui
     # not ent_coef 1e-8 (the defaults clipped into the range): the suite's own entry, so
     # the tuned suite's cells are the untuned one's and `run --reuse` can copy them
     assert best_block(study, tgt) == {"ppo-state": {"agent": "ppo"}}
+    # the defaults trial ran other settings than the method has today (its agent's
+    # defaults changed since): the block spells out what the trial ran
+    changed = ppo.replace("ppo-state: {agent: ppo}",
+                          "ppo-state: {agent: ppo, hyperparams: {gae_lambda: 0.9}}")
+    today = tuning.target(load_suite(write_suite(changed, "c.yaml"), registries()),
+                          "ppo-state", None, registries())
+    assert best_block(study, today)["ppo-state"]["hyperparams"]["gae_lambda"] == 0.95
     study.enqueue_trial({**other.params, "ent_coef": 0.01})
     tuned = study.ask()
     tuning.suggest(tuned, tgt.space)

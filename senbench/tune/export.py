@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from senbench.results.outputs import written_whole
-from senbench.tune.study import ENCODER, Target, moved_defaults
+from senbench.tune.study import ENCODER, Target, default_params, moved_defaults
 
 
 def best_block(study: Any, tgt: Target) -> dict[str, Any]:
@@ -49,7 +49,12 @@ def export_best(studies: list[tuple[Any, Target]], path: Path, *, objective: str
 
 
 def own_settings_won(study: Any, tgt: Target) -> bool:
-    return bool(study.best_trial.user_attrs.get("defaults")) and not moved_defaults(tgt)
+    """Whether the best trial ran the method's own settings as they are today: the defaults
+    trial, none of them moved into the searched range, and its parameters the ones the
+    method has now (an agent's defaults changed since would make them another method's)."""
+    best = study.best_trial
+    return (bool(best.user_attrs.get("defaults")) and not moved_defaults(tgt)
+            and best.params == default_params(tgt)[0])
 
 
 def _plain(values: dict[str, Any]) -> dict[str, Any]:

@@ -63,6 +63,8 @@ class PruningProgress:
                 continue
             value = float(np.nanmean(values))
             self.trial.report(value, step)
+            # the frames spent so far, kept should the process be killed before the end
+            self.trial.set_user_attr("frames", int(sum(self.frames.values())))
             if self.trial.should_prune():
                 raise optuna.TrialPruned(f"pruned at frame {step:,} (seed mean {value:.1f})")
 
