@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 from senbench.analysis.stats import (
+    censored_improvement,
+    censored_improvement_ci,
     improvement_ci,
     iqm,
     mean_ci,
@@ -26,6 +28,31 @@ def test_probability_of_improvement_counts_pairs_and_half_ties():
     assert probability_of_improvement([5, 6], [1, 2]) == 1.0
     assert probability_of_improvement([1, 2], [5, 6]) == 0.0
     assert probability_of_improvement([3, 3], [3, 3]) == 0.5
+
+
+def test_charged_frames_of_a_seed_that_never_got_there_are_only_a_lower_bound():
+    # A: 1,000 labelled frames; B: none; budget 10,000. A's seed that got there at 5,000
+    # online (6,000 charged) beats B's unreached seeds (at least 10,000); A's unreached
+    # seed (at least 11,000) against B's unreached ones: unknown, half; against B's seed at
+    # 4,000: B sooner. A's seed at 9,500 online (10,500 charged) against an unreached B:
+    # B needs more than 10,000, maybe less than 10,500: unknown, half.
+    a, a_never = [6_000, 11_000, 10_500], [False, True, False]
+    b, b_never = [10_000, 10_000, 4_000], [True, True, False]
+    wins = {(0, 0): 1, (0, 1): 1, (0, 2): 0, (1, 0): 0.5, (1, 1): 0.5, (1, 2): 0,
+            (2, 0): 0.5, (2, 1): 0.5, (2, 2): 0}
+    assert censored_improvement(a, a_never, b, b_never) == pytest.approx(
+        sum(wins.values()) / 9)
+    # ranked as values, the four half pairs would all be lost by A: 2/9 lower
+    assert probability_of_improvement([-v for v in a], [-v for v in b]) == pytest.approx(
+        (sum(wins.values()) - 2) / 9)
+    # nothing censored: P(X < Y) with ties half, as the plain statistic
+    x, y = [3.0, 1.0, 2.0], [2.0, 5.0, 2.0]
+    none = [False] * 3
+    assert censored_improvement(x, none, y, none) == probability_of_improvement(
+        [-v for v in x], [-v for v in y])
+    low, high = censored_improvement_ci(a, a_never, b, b_never)
+    assert 0.0 <= low <= censored_improvement(a, a_never, b, b_never) <= high <= 1.0
+    assert censored_improvement_ci(a[:1], a_never[:1], b, b_never) != (low, high)  # 1 run
 
 
 def test_the_bootstrap_resamples_within_each_stratum():

@@ -14,7 +14,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from senbench.analysis.stats import improvement_ci, iqm, probability_of_improvement, stratified_ci
+from senbench.analysis.stats import (
+    censored_improvement,
+    censored_improvement_ci,
+    improvement_ci,
+    iqm,
+    probability_of_improvement,
+    stratified_ci,
+)
 from senbench.analysis.summary import METRICS, label, per_cell, with_thresholds
 from senbench.errors import ResultsError
 from senbench.results.store import read_results
@@ -104,12 +111,21 @@ def compare(a: Side, b: Side) -> pd.DataFrame:
         if prefix == "charged" and not charged:
             continue  # the same as frames to threshold when neither used labelled frames
         x, y = (side.cells[column].to_numpy(dtype=float) for side in (a, b))
-        sign = 1.0 if higher_is_better else -1.0
-        low, high = improvement_ci(sign * x, sign * y)
+        if prefix == "charged":
+            # a seed that never got there needs at least budget + labelled frames: pairs
+            # whose order that hides count half. (Frames to threshold alone needs no such
+            # care: there every such seed is the budget, and equal values tie anyway.)
+            unreached = [~side.cells["reached"].to_numpy(dtype=bool) for side in (a, b)]
+            p_better = censored_improvement(x, unreached[0], y, unreached[1])
+            low, high = censored_improvement_ci(x, unreached[0], y, unreached[1])
+        else:
+            sign = 1.0 if higher_is_better else -1.0
+            p_better = probability_of_improvement(sign * x, sign * y)
+            low, high = improvement_ci(sign * x, sign * y)
         rows.append({
             "metric": prefix, "a_iqm": float(iqm(x)), "a_ci": stratified_ci([x]),
             "b_iqm": float(iqm(y)), "b_ci": stratified_ci([y]),
-            "p_better": probability_of_improvement(sign * x, sign * y),
+            "p_better": p_better,
             "p_low": low, "p_high": high, "a_seeds": len(x), "b_seeds": len(y),
         })
     return pd.DataFrame(rows)

@@ -7,8 +7,10 @@ precipice") recommend them, computed with scipy (rliable does not import beside 
   each stratum (each env: tasks are not exchangeable), the statistic recomputed on every
   resample, and the percentile interval taken;
 - probability of improvement P(X > Y): the chance that a run of X beats a run of Y, ties
-  counting half: the Mann-Whitney U statistic over the number of pairs, averaged over the
-  strata.
+  counting half: the Mann-Whitney U statistic over the number of pairs (one env at a
+  time); for frames with labelled frames charged, where a run that never got there is
+  only a lower bound, pairs whose order that hides count half (Gehan's generalised
+  Wilcoxon).
 
 Every bootstrap has a fixed seed, so a report prints the same intervals each time. A NaN
 value (a diverged seed's return) is left out of every statistic here, as ``mean`` in pandas
@@ -94,6 +96,52 @@ def improvement_ci(x: Sequence[float], y: Sequence[float], confidence: float = C
     """Percentile bootstrap interval of P(X > Y), the runs of X and of Y resampled
     independently."""
     return _percentile_ci([x, y], _pairwise_improvement, confidence, resamples, seed)
+
+
+def _censored_improvement(x: np.ndarray, x_censored: np.ndarray, y: np.ndarray,
+                          y_censored: np.ndarray) -> np.ndarray:
+    """Over the last axis: the share of pairs in which X needed fewer frames than Y. A
+    censored value is the least a run would have needed (it never got there within its
+    budget), so a pair whose order it hides counts half: X wins where its value is known
+    and below Y's (known or least), and loses the same way."""
+    xv, yv = x[..., :, None], y[..., None, :]
+    x_wins = (xv < yv) & ~x_censored[..., :, None]
+    y_wins = (yv < xv) & ~y_censored[..., None, :]
+    return (x_wins + 0.5 * ~(x_wins | y_wins)).mean(axis=(-2, -1))
+
+
+def censored_improvement(x: Sequence[float], x_censored: Sequence[bool],
+                         y: Sequence[float], y_censored: Sequence[bool]) -> float:
+    """P(X needs fewer frames than Y) + half the pairs whose order is unknown, where a
+    censored value is a lower bound: a run that never reached the threshold needs at least
+    its budget (plus any labelled frames charged to it). Two such runs, or a run that got
+    there later than the other's lower bound, are not ordered by the data: they count half,
+    as Gehan's generalised Wilcoxon test counts them. Without censoring, P(X < Y) with
+    ties half."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if not len(x) or not len(y):
+        return float("nan")
+    return float(_censored_improvement(x, np.asarray(x_censored, dtype=bool), y,
+                                       np.asarray(y_censored, dtype=bool)))
+
+
+def censored_improvement_ci(x: Sequence[float], x_censored: Sequence[bool],
+                            y: Sequence[float], y_censored: Sequence[bool],
+                            confidence: float = CONFIDENCE, resamples: int = RESAMPLES,
+                            seed: int = SEED) -> tuple[float, float]:
+    """Percentile bootstrap interval of :func:`censored_improvement`, the runs of X and of Y
+    (each with its censoring) resampled independently."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    xc, yc = np.asarray(x_censored, dtype=bool), np.asarray(y_censored, dtype=bool)
+    if len(x) < 2 or len(y) < 2:
+        return float("nan"), float("nan")
+    rng = np.random.default_rng(seed)
+    ix = rng.integers(0, len(x), (resamples, len(x)))
+    iy = rng.integers(0, len(y), (resamples, len(y)))
+    values = _censored_improvement(x[ix], xc[ix], y[iy], yc[iy])
+    tail = 100 * (1 - confidence) / 2
+    low, high = np.percentile(values, [tail, 100 - tail])
+    return float(low), float(high)
 
 
 def mean_ci(curves: np.ndarray, confidence: float = CONFIDENCE, resamples: int = RESAMPLES,

@@ -132,7 +132,9 @@ def show_comparison(pairs: list[tuple[str, Side, Side]], console: Console) -> No
                           f"{' / '.join(f'{t:g}' for t in thresholds)}",
                     caption="IQM [95% bootstrap CI] over seeds. P(A better): the chance that "
                     "a run of A does better than a run of B (higher return or AUC, fewer "
-                    "frames to threshold; ties count half), with its 95% bootstrap CI.")
+                    "frames to threshold; ties count half), with its 95% bootstrap CI. With "
+                    "labelled frames charged, a seed that never reached the threshold needs at "
+                    "least its budget plus them: pairs whose order that hides count half.")
         out.add_column("metric")
         out.add_column("A", justify="right")
         out.add_column("B", justify="right")
