@@ -256,6 +256,26 @@ def test_a_failed_trial_does_not_leave_the_study_short_and_a_resume_keeps_its_bu
     assert [t.state.name for t in study.trials] == ["FAIL", "FAIL"]  # gives up, no loop
 
 
+def test_a_sen_trial_trains_its_encoder_on_the_tuning_seed_and_an_older_study_is_kept(
+        write_suite, tmp_path):
+    tgt = tuning.target(load_suite(write_suite(SEN), registries()), "sen-sarsa", None,
+                        registries())
+    assert tgt.template.encoder["seed"] == 0  # what the suite reports with
+    cells = tuning.trial_cells(tgt, {"alpha": 0.5, "encoder.batch_norm": True}, 2,
+                               registries())
+    assert {c.encoder["seed"] for c in cells} == {tuning.TUNE_SEED_OFFSET}
+    assert {c.seed for c in cells} == {tuning.TUNE_SEED_OFFSET, tuning.TUNE_SEED_OFFSET + 1}
+    # a study whose trials ran on the suite's encoder seed is not resumed on another
+    storage = optuna.storages.InMemoryStorage()
+    older = optuna.create_study(study_name="s", storage=storage, direction="maximize")
+    older.tell(older.ask(), -150.0)
+    with pytest.raises(tuning.SuiteError, match="encoder_seed 0, not 1000000"):
+        tuning.run_study(tgt, trials=2, seeds=1, objective="auc", storage=storage,
+                         study_name="s", sampler="random", seed=0,
+                         pruner=tuning.make_pruner("none", tgt), results_root=tmp_path,
+                         workers=1, regs=registries(), log=lambda message: None)
+
+
 def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_suite):
     ppo = SUITE.replace("sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}",
                         "ppo-state: {agent: ppo}").replace("mountaincar: {}", "pendulum: {}")
@@ -489,6 +509,8 @@ tune:
 
 @pytest.mark.slow
 def test_an_encoder_setting_is_tuned_with_the_agent_and_exported_in_its_block(tmp_path):
+    import json
+
     (tmp_path / "s.yaml").write_text(SEN)
     tgt = tuning.target(load_suite(tmp_path / "s.yaml", registries()), "sen-sarsa", None,
                         registries())
@@ -505,6 +527,9 @@ def test_an_encoder_setting_is_tuned_with_the_agent_and_exported_in_its_block(tm
     norms = {t.params["encoder.batch_norm"] for t in study.trials}
     encoders = [p for p in (tmp_path / "results" / "encoders").iterdir() if p.is_dir()]
     assert len(encoders) == len(norms)  # one encoder per distinct setting
+    # on the tuning encoder seed, apart from the encoder a suite reports with (seed 0)
+    assert {json.loads((p / "spec.json").read_text())["seed"] for p in encoders} == {
+        tuning.TUNE_SEED_OFFSET}
     block = yaml.safe_load((tmp_path / "b.yaml").read_text())["sen-sarsa"]
     assert block["encoder"]["config"]["batch_norm"] == study.best_trial.params[
         "encoder.batch_norm"]

@@ -10,7 +10,8 @@ AUC, final return, frames to threshold (a seed that never reaches it counts as t
 or the mean return of the training episodes.
 
 Tuning seeds are 1,000,000 + i, apart from any suite's own seeds, so that a method is not
-tuned on the seeds it is then reported on.
+tuned on the seeds it is then reported on; a method's state encoder is trained on encoder
+seed 1,000,000 in every trial, apart from the encoder its reports use.
 
 The study lives in Optuna storage: by default a SQLite file, ``results/<suite>/tune.db``.
 Running the command again resumes the study (``--trials`` is the total to reach, counting
@@ -214,6 +215,8 @@ def trial_cells(tgt: Target, params: dict[str, Any], seeds: int, regs: Any) -> l
     resolved = agent.config(**hyperparams)  # raises on a bad combination
     hyperparams = {k: getattr(resolved, k) for k in hyperparams}
     encoder = copy.deepcopy(tgt.template.encoder)
+    if encoder is not None:  # its labelled frames and weights drawn apart from the reported
+        encoder["seed"] = TUNE_SEED_OFFSET
     if encoder_params:
         arch = regs.encoders.get(encoder["arch"])
         encoder["config"] = dataclasses.asdict(arch.config(**{**encoder["config"],
@@ -246,11 +249,20 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     # these were kept take them from their next run)
     budget = {"seeds": seeds, "frames": tgt.template.budget,
               "eval_every": tgt.template.eval_every,
-              "eval_episodes": tgt.template.eval_episodes, "pruner": type(pruner).__name__}
+              "eval_episodes": tgt.template.eval_episodes, "pruner": type(pruner).__name__,
+              "encoder_seed": TUNE_SEED_OFFSET if tgt.template.encoder else None}
+    # trials from before the encoder had a tuning seed ran on the suite's own (0)
+    before = {"encoder_seed": 0 if tgt.template.encoder else None} if study.trials else {}
     for key, value in budget.items():
-        if study.user_attrs.get(key, value) != value:
+        ran = study.user_attrs.get(key, before.get(key, value))
+        if ran != value and key == "encoder_seed":
+            raise SuiteError(f"study '{study_name}' ran its trials with encoder_seed {ran}, "
+                             f"not {value}: its encoders were trained on the suite's encoder "
+                             "seed, before trials had one of their own; tune the method "
+                             "anew as a new study with --study NAME")
+        if ran != value:
             raise SuiteError(f"study '{study_name}' ran its trials with {key} "
-                             f"{study.user_attrs[key]}, not {value}: resume it as it ran "
+                             f"{ran}, not {value}: resume it as it ran "
                              "(--seeds, the suite's budget and eval, --pruner), or tune "
                              "these settings as a new study with --study NAME")
     for key, value in {"objective": objective, "suite": tgt.suite.name, "method": tgt.method,
