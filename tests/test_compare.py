@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from rich.console import Console
 
-from senbench.analysis.compare import Side, compare
+from senbench.analysis.compare import Side, compare, pairs_in_one_folder
 from senbench.analysis.summary import per_cell, summarize
 from senbench.cli.plots import learning_curves
 from senbench.results.store import read_results, write_cell
@@ -80,6 +80,24 @@ def test_compare_refuses_a_method_against_itself_and_names_a_missing_folder(tmp_
         pairs_for("a", "a", folder, False, {})
     with pytest.raises(ResultsError, match=f"no folder {tmp_path}/gone; name two"):
         pairs_for(str(folder), f"{tmp_path}/gone", None, False, {})
+
+
+def test_compare_says_how_many_failed_cells_it_left_out(tmp_path):
+    from senbench.cli.views import show_comparison
+
+    folder = write_fake(tmp_path, "cmp", ["a", "b"])
+    common = {"cell_id": "a-failed", "suite": "cmp", "env": "mountaincar", "method": "a",
+              "variant": "", "seed": 9, "threshold": -110.0, "budget": 4000}
+    write_cell(folder / "cells", "a-failed", [{**common, "kind": "cell", "status": "failed",
+                                               "error": "boom", "cell_wall_s": 1.0}])
+    manifest = folder / "cells.json"
+    manifest.write_text(json.dumps({"cells": json.loads(manifest.read_text())["cells"]
+                                    + ["a-failed"]}))
+    [(env, a, b)] = pairs_in_one_folder(folder, "a", "b")
+    assert (len(a.cells), a.failed, b.failed) == (4, 1, 0)
+    console = Console(record=True, width=200)
+    show_comparison([(env, a, b)], console)
+    assert "A = a (4 seeds, 1 failed and left out) vs B = b (4 seeds)" in console.export_text()
 
 
 def test_report_summary_has_iqm_intervals_and_mean_std(tmp_path):

@@ -72,7 +72,7 @@ def test_compare_charges_labelled_frames_only_where_some_were_used():
     def side(name, steps, labelled):
         return Side(name, pd.DataFrame({
             "final_return": [-110.0, -120.0, -115.0], "auc": [-130.0, -140.0, -135.0],
-            "steps_to_threshold": steps, "labelled_frames": labelled,
+            "steps_to_threshold": steps, "reached": [True] * 3, "labelled_frames": labelled,
             "charged_frames": [s + labelled for s in steps]}))
 
     sen, rival = side("sen", [1000.0, 2000.0, 3000.0], 10_000), side("px", [9000.0] * 3, 0)

@@ -36,6 +36,8 @@ class Side:
     """How the table names this side: a method label, or folder: label."""
     cells: pd.DataFrame
     """Finished cells of one method (per_cell rows)."""
+    failed: int = 0
+    """Its failed cells, left out of every statistic (the table says how many)."""
 
 
 def _finished_cells(results: pd.DataFrame, folder: Path) -> pd.DataFrame:
@@ -46,8 +48,10 @@ def _finished_cells(results: pd.DataFrame, folder: Path) -> pd.DataFrame:
     if len(suites) > 1:
         raise ResultsError(f"{folder} holds several suites ({', '.join(suites)}); name one "
                            "suite's folder, e.g. results/<suite>")
-    cells = cells[cells["status"] == "ok"].copy()
     cells["label"] = [label(m, v) for m, v in zip(cells["method"], cells["variant"], strict=True)]
+    failed = cells[cells["status"] != "ok"].groupby(["env", "label"]).size().to_dict()
+    cells = cells[cells["status"] == "ok"].copy()
+    cells.attrs["failed"] = failed
     if cells.duplicated(["env", "label", "seed"]).any():
         raise ResultsError(f"{folder}: cells of several versions of the suite share a method "
                            "and seed; compare without --all")
@@ -66,8 +70,9 @@ def pairs_in_one_folder(folder: Path, a: str, b: str, include_stale: bool = Fals
     pairs = []
     for env, group in cells.groupby("env", sort=True):
         if {a, b} <= set(group["label"]):
-            pairs.append((env, Side(a, group[group["label"] == a]),
-                          Side(b, group[group["label"] == b])))
+            failed = cells.attrs["failed"]
+            pairs.append((env, Side(a, group[group["label"] == a], failed.get((env, a), 0)),
+                          Side(b, group[group["label"] == b], failed.get((env, b), 0))))
     if not pairs:
         raise ResultsError(f"'{a}' and '{b}' never ran on the same env in {folder}")
     return pairs
@@ -94,8 +99,10 @@ def pairs_across_folders(a: Path, b: Path, include_stale: bool = False,
                 raise ResultsError(f"{env}: {a} ran {la} for {left_budget:,} frames, {b} ran "
                                    f"{lb} for {right_budget:,}: frames to threshold and AUC "
                                    "are only comparable at one budget")
-            pairs.append((env, Side(f"{a.name}: {la}", lg[lg["label"] == la]),
-                          Side(f"{b.name}: {lb}", rg[rg["label"] == lb])))
+            pairs.append((env, Side(f"{a.name}: {la}", lg[lg["label"] == la],
+                                    left.attrs["failed"].get((env, la), 0)),
+                          Side(f"{b.name}: {lb}", rg[rg["label"] == lb],
+                               right.attrs["failed"].get((env, lb), 0))))
     if not pairs:
         raise ResultsError(f"{a} and {b} share no env and method to compare; name two methods "
                          "of one folder instead: senbench compare A B --results DIR")

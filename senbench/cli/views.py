@@ -127,8 +127,8 @@ def show_comparison(pairs: list[tuple[str, Side, Side]], console: Console) -> No
     for env, a, b in pairs:
         table = compare(a, b)
         thresholds = sorted(set(a.cells["threshold"]) | set(b.cells["threshold"]))
-        out = Table(title=f"{env}: A = {escape(a.name)} ({len(a.cells)} seeds) vs "
-                          f"B = {escape(b.name)} ({len(b.cells)} seeds); threshold "
+        out = Table(title=f"{env}: A = {escape(a.name)} ({_seeds(a)}) vs "
+                          f"B = {escape(b.name)} ({_seeds(b)}); threshold "
                           f"{' / '.join(f'{t:g}' for t in thresholds)}",
                     caption="IQM [95% bootstrap CI] over seeds. P(A better): the chance that "
                     "a run of A does better than a run of B (higher return or AUC, fewer "
@@ -260,3 +260,9 @@ def show_actions(table: pd.DataFrame, console: Console) -> None:
                 text = "not recorded (results from before action recording)"
             out.add_row(escape(label(row.method, row.variant)), frame, str(row.seeds), text)
         console.print(out)
+
+
+def _seeds(side) -> str:
+    """A side's seeds as the comparison counts them, and its failed ones left out."""
+    failed = f", {side.failed} failed and left out" if side.failed else ""
+    return f"{len(side.cells)} seeds{failed}"
