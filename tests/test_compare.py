@@ -100,6 +100,16 @@ def test_compare_says_how_many_failed_cells_it_left_out(tmp_path):
     assert "A = a (4 seeds, 1 failed and left out) vs B = b (4 seeds)" in console.export_text()
 
 
+def test_a_cell_recorded_in_two_folders_is_not_read_as_one_curve(tmp_path):
+    from senbench.errors import ResultsError
+
+    first = write_fake(tmp_path / "trial-1", "cmp", ["a"])
+    write_fake(tmp_path / "trial-7", "cmp", ["a"])  # a trial that drew the same settings
+    assert read_results(first)["cell_id"].nunique() == 4  # each folder on its own is fine
+    with pytest.raises(ResultsError, match="is recorded 2 times, in several folders"):
+        read_results(tmp_path)
+
+
 def test_report_summary_has_iqm_intervals_and_mean_std(tmp_path):
     summary = summarize(read_results(write_fake(tmp_path, "cmp", ["a", "b"])))
     a = summary.set_index("method").loc["a"]

@@ -230,5 +230,13 @@ def read_results(path: str | Path, include_stale: bool = False) -> pd.DataFrame:
             raise ResultsError(f"{f}: not a senbench cell result ({exc}); move it out of "
                                "the results folder") from None
     frame = pa.concat_tables(tables).to_pandas()
+    cells = frame[frame["kind"] == "cell"]
+    twice = cells[cells.duplicated(["suite", "cell_id"], keep=False)]
+    if len(twice):  # one curve would be read as the two files' rows interleaved
+        suite, cell_id = twice.iloc[0][["suite", "cell_id"]]
+        raise ResultsError(f"{path}: cell {cell_id} of suite {suite} is recorded "
+                           f"{int((twice['cell_id'] == cell_id).sum())} times, in several "
+                           "folders under it (a tuning study's trials that drew the same "
+                           "settings, or copies); read one of those folders")
     frame.attrs["stale"], frame.attrs["missing"] = stale, missing
     return frame
