@@ -276,6 +276,21 @@ def test_a_sen_trial_trains_its_encoder_on_the_tuning_seed_and_an_older_study_is
                          workers=1, regs=registries(), log=lambda message: None)
 
 
+def test_an_export_says_when_its_best_trial_tied_with_others(write_suite, tmp_path):
+    from senbench.tune.export import export_best
+
+    tgt = tuning.target(load_suite(write_suite(SUITE), registries()), "sarsa-state", None,
+                        registries())
+    study = optuna.create_study(direction="minimize")  # frames to threshold: all the budget
+    for _ in range(3):
+        trial = study.ask()
+        tuning.suggest(trial, tgt.space)
+        study.tell(trial, 2000.0)
+    export_best([(study, tgt)], tmp_path / "b.yaml", objective="steps-to-threshold", seeds=1)
+    head = (tmp_path / "b.yaml").read_text().splitlines()[:2]
+    assert head[1] == "#   tied with trials 1, 2: the study did not rank them"
+
+
 def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_suite):
     ppo = SUITE.replace("sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}",
                         "ppo-state: {agent: ppo}").replace("mountaincar: {}", "pendulum: {}")

@@ -43,6 +43,11 @@ def export_best(studies: list[tuple[Any, Target]], path: Path, *, objective: str
                if own_settings_won(study, tgt) else "")
         head.append(f"# senbench tune: study '{study.study_name}', trial {best.number}{own}, "
                     f"{objective} {best.value:,.2f} over {seeds} seeds\n")
+        tied = [t.number for t in study.trials if t.number != best.number
+                and t.state.name == "COMPLETE" and t.value == best.value]
+        if tied:  # which of them Optuna returns says nothing of the settings
+            head.append(f"#   tied with trial{'s' if len(tied) > 1 else ''} "
+                        f"{', '.join(map(str, tied))}: the study did not rank them\n")
     text = yaml.safe_dump(blocks, sort_keys=False)
     with written_whole(path, "--export") as tmp:
         tmp.write_text("".join(head) + text)
