@@ -147,9 +147,10 @@ def plot_curves_command(
     from senbench.cli.plots import plot_curves
     from senbench.results.store import read_results
 
-    if not results_dir.is_dir():
-        raise ResultsError(f"{results_dir}: no such results folder")
-    png = png or results_dir / "curves.png"
+    if png is None:  # its default lies in the results folder, which must be one
+        if not results_dir.is_dir():
+            raise ResultsError(f"{results_dir}: no such results folder")
+        png = results_dir / "curves.png"
     check_out_file(png, FIGURES)
     results = with_thresholds(read_results(results_dir, include_stale=all_cells),
                               parse_thresholds(threshold or []))
