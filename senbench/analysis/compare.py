@@ -67,10 +67,9 @@ def pairs_in_one_folder(folder: Path, a: str, b: str, include_stale: bool = Fals
         if name not in known:
             raise ResultsError(f"no finished cells of method '{name}' in {folder}; it has: "
                              f"{', '.join(known) or 'none'}")
-    pairs = []
+    pairs, failed = [], cells.attrs["failed"]
     for env, group in cells.groupby("env", sort=True):
         if {a, b} <= set(group["label"]):
-            failed = cells.attrs["failed"]
             pairs.append((env, Side(a, group[group["label"] == a], failed.get((env, a), 0)),
                           Side(b, group[group["label"] == b], failed.get((env, b), 0))))
     if not pairs:

@@ -211,10 +211,11 @@ def read_results(path: str | Path, include_stale: bool = False) -> pd.DataFrame:
     files = find_cell_files(path)
     stale = missing = 0
     if not include_stale:
-        keep = []
-        for suite_dir in sorted({f.parent.parent for f in files}):
+        keep, by_suite = [], {}
+        for f in files:
+            by_suite.setdefault(f.parent.parent, []).append(f)
+        for suite_dir, mine in by_suite.items():
             ids = current_cells(suite_dir)
-            mine = [f for f in files if f.parent.parent == suite_dir]
             keep += [f for f in mine if ids is None or f.stem in ids]
             missing += len((ids or set()) - {f.stem for f in mine})
         stale = len(files) - len(keep)

@@ -239,34 +239,30 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     study = optuna.create_study(study_name=study_name, storage=storage, pruner=pruner,
                                 direction=OBJECTIVES[objective], load_if_exists=True)
     study.sampler = make_sampler(sampler, seed, held=len(study.trials))
-    stored = study.user_attrs.get("objective")
-    if stored is not None and stored != objective:
-        raise SuiteError(f"study '{study_name}' optimises {stored}, not {objective}: pass "
-                         f"--objective {stored}, or --study with a new name")
-    check_same_space(study, tgt.space, study_name)  # before the study is written to
-    # what makes its trials comparable: a resume with other seeds, frames, evaluations or
-    # pruner would rank trials that did not have the same budget (studies from before
-    # these were kept take them from their next run)
-    budget = {"seeds": seeds, "frames": tgt.template.budget,
+    # What makes its trials comparable, and how to resume it as it ran: another objective,
+    # seeds, frames, evaluations, pruner or encoder seed would rank trials that did not have
+    # the same budget. (Studies from before these were kept take them from their next run,
+    # but trials from before the encoder had a tuning seed ran on the suite's own, 0.)
+    budget = {"objective": objective, "seeds": seeds, "frames": tgt.template.budget,
               "eval_every": tgt.template.eval_every,
               "eval_episodes": tgt.template.eval_episodes, "pruner": type(pruner).__name__,
               "encoder_seed": TUNE_SEED_OFFSET if tgt.template.encoder else None}
-    # trials from before the encoder had a tuning seed ran on the suite's own (0)
+    how = {"objective": "pass --objective {ran}", "seeds": "pass --seeds {ran}",
+           "frames": "give the suite its budget back", "eval_every": "give the suite its "
+           "eval back", "eval_episodes": "give the suite its eval back",
+           "pruner": "pass the --pruner it ran",
+           "encoder_seed": "its encoders were trained on the suite's encoder seed, before "
+           "trials had one of their own, so it cannot be resumed"}
     before = {"encoder_seed": 0 if tgt.template.encoder else None} if study.trials else {}
     for key, value in budget.items():
         ran = study.user_attrs.get(key, before.get(key, value))
-        if ran != value and key == "encoder_seed":
-            raise SuiteError(f"study '{study_name}' ran its trials with encoder_seed {ran}, "
-                             f"not {value}: its encoders were trained on the suite's encoder "
-                             "seed, before trials had one of their own; tune the method "
-                             "anew as a new study with --study NAME")
         if ran != value:
-            raise SuiteError(f"study '{study_name}' ran its trials with {key} "
-                             f"{ran}, not {value}: resume it as it ran "
-                             "(--seeds, the suite's budget and eval, --pruner), or tune "
-                             "these settings as a new study with --study NAME")
-    for key, value in {"objective": objective, "suite": tgt.suite.name, "method": tgt.method,
-                       "env": tgt.env, **budget}.items():
+            raise SuiteError(f"study '{study_name}' ran its trials with {key} {ran}, not "
+                             f"{value}: {how[key].format(ran=ran)}; or tune the method as "
+                             "a new study with --study NAME")
+    check_same_space(study, tgt.space, study_name)  # before the study is written to
+    for key, value in {"suite": tgt.suite.name, "method": tgt.method, "env": tgt.env,
+                       **budget}.items():
         study.set_user_attr(key, value)
     # two processes opening a new study at once would both queue the defaults
     with sqlite_lock(getattr(storage, "url", storage if isinstance(storage, str) else None)):
