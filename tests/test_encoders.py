@@ -17,6 +17,7 @@ from senbench.encoders import (
     load_or_train,
     train,
 )
+from senbench.encoders.training import draw
 from senbench.errors import EncoderCacheError
 from senbench.observe.observations import make_env
 from senbench.observe.pixels import PixelSpec
@@ -106,6 +107,20 @@ def test_encoder_ids_name_the_training_threads_only_when_not_the_default():
     other = EncoderRequest(**{**paper.__dict__, "training": Training(threads=1)})
     assert other.id != paper.id  # other weights: another encoder
     assert other.as_dict()["training"]["threads"] == 1
+
+
+def test_env_options_name_the_encoder_and_reach_its_sampler():
+    # A suite's env options (pendulum's g) change the env the cells step, so they name
+    # another encoder, whose sampler steps the env made with them; no options leave the
+    # ids of the committed encoders as they were.
+    plain = request("pendulum", sampler="rollout")
+    light = request("pendulum", sampler="rollout", env_options={"g": 2.0})
+    assert plain.id != light.id
+    assert request(env_options={}).id == request().id
+    _, states = draw(plain, registries(), 30, seed=0)
+    _, moved = draw(light, registries(), 30, seed=0)
+    assert np.array_equal(states[0], moved[0])  # the same reset...
+    assert not np.allclose(states[5:], moved[5:])  # ...then another gravity
 
 
 @pytest.mark.slow

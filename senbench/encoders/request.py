@@ -1,8 +1,8 @@
 """What names a state encoder: its request, the one home of its defaults (suites, the CLI
 and the cache all take them from here).
 
-An encoder is named by everything that decides its weights — env, pixel spec, sampler and
-its config, pool size, the fraction of the pool it trains on (the paper's d%), architecture
+An encoder is named by everything that decides its weights — env and its options, pixel
+spec, sampler and its config, pool size, the fraction of the pool it trains on (the paper's d%), architecture
 and its config, training settings, seed — hashed into an id.
 """
 
@@ -54,6 +54,9 @@ class EncoderRequest:
     arch_config: dict[str, Any] = field(default_factory=dict)
     sampler_config: dict[str, Any] = field(default_factory=dict)
     training: Training = Training()
+    env_options: dict[str, Any] = field(default_factory=dict)
+    """The env's keyword options (a suite's ``envs: <env>: options:``): the sampler draws
+    its frames from the env made with them, as the cells that read them are."""
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -63,6 +66,8 @@ class EncoderRequest:
         named = self.as_dict()
         if named["training"]["threads"] == TRAINING_THREADS:  # ids from before the field
             del named["training"]["threads"]
+        if not named["env_options"]:  # ids from before the field
+            del named["env_options"]
         canonical = json.dumps(named, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(canonical.encode()).hexdigest()[:16]
 

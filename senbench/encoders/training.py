@@ -10,6 +10,8 @@ successful trajectory, as the paper's Figs. 6 and 10.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import hashlib
 import json
 import time
@@ -42,8 +44,18 @@ def sha256_of(path: Path) -> str:
     return digest.hexdigest()
 
 
-def draw(request: EncoderRequest, regs: Registries, count: int, seed: int):
+def env_of(request: EncoderRequest, regs: Registries) -> Any:
+    """The env plugin whose ``make`` makes the env with the request's options, as the cells
+    that read the encoder make it: a sampler or the trace then steps the cells' env."""
     env_spec = regs.envs.get(request.env)
+    if not request.env_options:
+        return env_spec
+    return dataclasses.replace(env_spec, make=functools.partial(env_spec.make,
+                                                                **request.env_options))
+
+
+def draw(request: EncoderRequest, regs: Registries, count: int, seed: int):
+    env_spec = env_of(request, regs)
     sampler = regs.samplers.get(request.sampler)
     config = sampler.config(**request.sampler_config)
     frames, targets = sampler.sample(env_spec, count, request.pixels, seed, config)
@@ -166,7 +178,7 @@ def _train(request: EncoderRequest, regs: Registries, out: Path,
 def trace(encoder: StateEncoder, request: EncoderRequest,
           regs: Registries) -> list[dict[str, Any]] | None:
     """Predicted vs true observation along one episode of the env's demo policy."""
-    env_spec = regs.envs.get(request.env)
+    env_spec = env_of(request, regs)
     if env_spec.demo_policy is None or env_spec.observe is None:
         return None
     steps = min(TRACE_STEPS, env_spec.max_episode_steps)

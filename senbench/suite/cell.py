@@ -181,4 +181,5 @@ class Cell:
             arch_config=entry["config"], sampler_config=entry["sampler_config"],
             training=Training(epochs=entry["epochs"], batch_size=entry["batch_size"],
                               learning_rate=entry["learning_rate"], patience=entry["patience"],
-                              lr_decay=entry["lr_decay"], test_samples=entry["test_samples"]))
+                              lr_decay=entry["lr_decay"], test_samples=entry["test_samples"]),
+            env_options=dict(self.env_options))
