@@ -2,8 +2,8 @@
 and the cache all take them from here).
 
 An encoder is named by everything that decides its weights — env and its options, pixel
-spec, sampler and its config, pool size, the fraction of the pool it trains on (the paper's d%), architecture
-and its config, training settings, seed — hashed into an id.
+spec, sampler and its config, pool size, the fraction of the pool it trains on (the
+paper's d%), architecture and its config, training settings, seed — hashed into an id.
 """
 
 from __future__ import annotations
