@@ -27,7 +27,7 @@ class Count:
 
 def learning_rate(agent_name: str, observation: str, env_name: str, frames: int,
                   hyperparams: dict[str, Any], precision: str = "fp32",
-                  encoder: Any = None) -> float:
+                  encoder: Any = None, memory_format: str = "contiguous") -> float:
     """Frames/s of the agent learning for ``frames`` frames with these hyperparameters
     (beyond its config's defaults) on 2x64x64 frames where it sees pixels."""
     regs = registries()
@@ -36,7 +36,7 @@ def learning_rate(agent_name: str, observation: str, env_name: str, frames: int,
     def make():
         return make_env(spec, observation, spec.max_episode_steps, {}, PixelSpec(), encoder)
 
-    ctx = AgentContext(agent.config(**hyperparams), spec, make, 0, 1, precision)
+    ctx = AgentContext(agent.config(**hyperparams), spec, make, 0, 1, precision, memory_format)
     learner = agent.make(ctx)
     start = time.perf_counter()
     learner.learn(frames, Count(frames))

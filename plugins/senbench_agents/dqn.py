@@ -23,9 +23,11 @@ from pydantic.dataclasses import dataclass
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
 from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
+    MEMORY_FORMATS,
     NATURE_CNN_MIN_FRAME,
     PRECISIONS,
     is_frame_stack,
+    lay_out,
     learn_with_recorder,
     monitored_vec_env,
     with_precision,
@@ -122,6 +124,7 @@ class DQNAgent:
             replay_buffer_kwargs=buffer_kwargs, policy_kwargs=policy_kwargs, seed=ctx.seed,
             device="cpu", verbose=0, **extra,
         )
+        lay_out(self.model, ctx.memory_format)
 
     def algorithm(self, cfg: DQNConfig, frame: tuple[int, ...]) -> tuple[type, dict]:
         """The SB3 class to build and the keyword arguments it takes beyond DQN's."""
@@ -190,7 +193,8 @@ def dqn_spec(name: str, agent: type, description: str) -> AgentSpec:
                                "mountaincar-bars": ZOO_MOUNTAINCAR,
                                "mountaincar-bars:pixels": ATARI_AT_1M},
                      description=description, search_space=DQN_SPACE,
-                     min_frame_size=NATURE_CNN_MIN_FRAME, precisions=PRECISIONS)
+                     min_frame_size=NATURE_CNN_MIN_FRAME, precisions=PRECISIONS,
+                     memory_formats=MEMORY_FORMATS)
 
 
 DQN_SPEC = dqn_spec("dqn", DQNAgent, "Stable-Baselines3 DQN: NatureCNN on pixels, MLP on a state")

@@ -30,7 +30,7 @@ from senbench import AgentSpec, Choice
 from senbench_agents.augment import min_frame_size, scaled_pad
 from senbench_agents.dqn import DQN_SPACE, DQNAgent, DQNConfig
 from senbench_agents.ranges import NonNegativeInt, PositiveInt, Probability
-from senbench_agents.sb3 import PRECISIONS
+from senbench_agents.sb3 import MEMORY_FORMATS, PRECISIONS
 
 
 @dataclass
@@ -182,4 +182,4 @@ DRQ_SPEC = AgentSpec(
     # run its own settings as trial 0 without it
     search_space={**DQN_SPACE,
                   "target_update_interval": Choice((1, 500, 1000, 5000, 10000))},
-    min_frame_size=min_frame_size, precisions=PRECISIONS)
+    min_frame_size=min_frame_size, precisions=PRECISIONS, memory_formats=MEMORY_FORMATS)

@@ -18,9 +18,11 @@ from pydantic.dataclasses import dataclass
 from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
 from senbench_agents.ranges import NonNegativeFloat, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
+    MEMORY_FORMATS,
     NATURE_CNN_MIN_FRAME,
     PRECISIONS,
     is_frame_stack,
+    lay_out,
     learn_with_recorder,
     monitored_vec_env,
     with_precision,
@@ -109,6 +111,7 @@ class PPOAgent:
             device="cpu",
             verbose=0,
         )
+        lay_out(self.model, ctx.memory_format)
 
     def act(self, observation: np.ndarray):
         action, _ = self.model.predict(observation, deterministic=True)
@@ -153,6 +156,7 @@ PPO_SPEC = AgentSpec(
     description="Stable-Baselines3 PPO: MLP actor-critic; NatureCNN under it on pixels",
     min_frame_size=NATURE_CNN_MIN_FRAME,
     precisions=PRECISIONS,
+    memory_formats=MEMORY_FORMATS,
     # After rl-baselines3-zoo's sample_ppo_params, and normalize_reward, which the zoo
     # sets per env (on for PPO on pixels): it decides whether PPO learns Pendulum's bars
     # from pixels (suites/controls-ppo-pixels.yaml).

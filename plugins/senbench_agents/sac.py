@@ -34,9 +34,11 @@ from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Reco
 from senbench_agents.augment import min_frame_size as shifted_min_frame_size
 from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
+    MEMORY_FORMATS,
     NATURE_CNN_MIN_FRAME,
     PRECISIONS,
     is_frame_stack,
+    lay_out,
     learn_with_recorder,
     monitored_vec_env,
     with_precision,
@@ -207,6 +209,7 @@ class SACAgent:
             ent_coef=cfg.ent_coef, target_update_interval=cfg.target_update_interval,
             use_sde=cfg.use_sde, policy_kwargs=policy_kwargs, seed=ctx.seed, device="cpu",
             verbose=0, **self.buffer(cfg, venv.observation_space.shape[1:], ctx.seed))
+        lay_out(self.model, ctx.memory_format)
 
     def buffer(self, cfg: SACConfig, frame: tuple[int, ...], seed: int) -> dict:
         """SAC's replay buffer arguments: SB3's own buffer."""
@@ -254,11 +257,13 @@ SAC_SPEC = AgentSpec(
               "pendulum:pixels": ON_PIXELS, "pendulum-bars:pixels": ON_PIXELS},
     description="Stable-Baselines3 SAC: MLP actor and twin critics; a NatureCNN under each "
     "on pixels",
-    search_space=SAC_SPACE, min_frame_size=NATURE_CNN_MIN_FRAME, precisions=PRECISIONS)
+    search_space=SAC_SPACE, min_frame_size=NATURE_CNN_MIN_FRAME, precisions=PRECISIONS,
+    memory_formats=MEMORY_FORMATS)
 
 DRQ_SAC_SPEC = AgentSpec(
     name="drq-sac", make=DrQSACAgent, config=DrQSACConfig, actions=frozenset({"continuous"}),
     observations=frozenset({"pixels"}),
     description="DrQ's SAC: SB3's SAC on randomly shifted frames, target averaged over K "
     "shifts, critic loss over M (Kostrikov et al. 2020)",
-    search_space=SAC_SPACE, min_frame_size=shifted_min_frame_size, precisions=PRECISIONS)
+    search_space=SAC_SPACE, min_frame_size=shifted_min_frame_size, precisions=PRECISIONS,
+    memory_formats=MEMORY_FORMATS)

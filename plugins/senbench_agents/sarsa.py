@@ -127,6 +127,8 @@ SARSA_SPEC = AgentSpec(
     config=SarsaConfig,
     actions=frozenset({"discrete"}),
     observations=frozenset({"state", "encoded"}),
+    # no network of its own: a layout is its state encoder's, which the runner lays out
+    memory_formats=frozenset({"contiguous", "channels_last"}),
     defaults={
         "mountaincar": AgentDefaults(
             values={"tilings": 16, "tiles": 6, "alpha": 1.0, "trace_decay": 0.9},

@@ -3,6 +3,8 @@ pipeline, and learning that reports through the recorder and stops at the budget
 
 from __future__ import annotations
 
+from typing import Any
+
 from senbench import AgentContext, Recorder
 
 NATURE_CNN_MIN_FRAME = 36
@@ -50,6 +52,23 @@ def learn_with_recorder(model, budget: int, recorder: Recorder) -> None:
 
 PRECISIONS = frozenset({"fp32", "bf16"})
 """What every SB3 agent offers: its updates in fp32, or in bf16 under torch.autocast."""
+MEMORY_FORMATS = frozenset({"contiguous", "channels_last"})
+"""What every SB3 agent offers: its networks' tensors laid out NCHW, or NHWC."""
+
+
+def lay_out(model: Any, memory_format: str) -> None:
+    """Lay out the 4-d weights of ``model``'s networks (an SB3 model's policy: online and
+    target networks alike) as ``memory_format``. The parameters stay the same objects, so
+    the optimiser already built over them goes on; a convolution with NHWC weights computes
+    NHWC whatever its input's layout, and its gradients follow its weights."""
+    if memory_format == "contiguous":
+        return
+    if memory_format != "channels_last":
+        raise ValueError(f"memory_format must be contiguous or channels_last, "
+                         f"got {memory_format!r}")
+    import torch as th
+
+    model.policy.to(memory_format=th.channels_last)
 
 
 def with_precision(algorithm: type, precision: str) -> type:

@@ -206,6 +206,9 @@ class AgentSpec:
     precisions: frozenset[str] = frozenset({"fp32"})
     """The ``precision`` values the agent honours (``AgentContext.precision``): a suite
     asking for another is a validation error at its ``precision``."""
+    memory_formats: frozenset[str] = frozenset({"contiguous"})
+    """The ``memory_format`` values the agent honours (``AgentContext.memory_format``): a
+    suite asking for another is a validation error at its ``memory_format``."""
     seed_batching: bool = False
     """The agent may run beside other seeds in one process (a suite's ``seed_batch``; see
     :mod:`senbench.run.batch`): each seed in a thread of its own, their frames encoded in
@@ -337,6 +340,11 @@ class AgentContext:
     """The arithmetic of the agent's network updates: ``fp32``, or ``bf16`` (for an agent
     whose ``precisions`` include it: e.g. its updates under ``torch.autocast("cpu",
     dtype=torch.bfloat16)``)."""
+    memory_format: str = "contiguous"
+    """The layout of the agent's convolutions' tensors: ``contiguous`` (NCHW), or
+    ``channels_last`` (NHWC: for an agent whose ``memory_formats`` include it, its networks
+    converted with ``module.to(memory_format=torch.channels_last)``). An encoded cell's
+    state encoder is laid out so by the runner."""
 
 
 class Recorder(Protocol):

@@ -153,7 +153,8 @@ def execute_cells(cells: list[Cell], info: RunInfo, progress: ProgressCallback |
         raise ValueError(f"a seed batch of {size} takes up to {size} seeds of one method, "
                          f"not {[c.label for c in cells]}")
     try:
-        encoder = load_or_train(info.encoder_cache, cells[0].encoder_request(), registries())
+        encoder = load_or_train(info.encoder_cache, cells[0].encoder_request(),
+                                registries()).laid_out(cells[0].memory_format)
     except Exception as exc:  # each cell records why, as alone
         results = [lost_cell(c, info, f"could not load its encoder: {exc!r}") for c in cells]
         for cell, result in zip(cells, results, strict=True):

@@ -84,7 +84,7 @@ def agent_context(cell: Cell, encoder: Any = None) -> AgentContext:
                         cell.pixels, encoder)
 
     return AgentContext(regs.agents.get(cell.agent).config(**cell.hyperparams), env_spec,
-                        make, cell.seed, cell.threads, cell.precision)
+                        make, cell.seed, cell.threads, cell.precision, cell.memory_format)
 
 
 def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = None,
@@ -109,7 +109,8 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
     try:
         request = cell.encoder_request()
         if alone and request is not None:
-            encoder = load_or_train(info.encoder_cache, request, registries())
+            encoder = load_or_train(info.encoder_cache, request,
+                                    registries()).laid_out(cell.memory_format)
         if alone:
             _seed_everything(cell.seed)
         ctx = agent_context(cell, encoder)

@@ -59,6 +59,9 @@ class Cell:
     """Probability of a random action at each evaluation step."""
     precision: str = "fp32"
     """The arithmetic of the agent's network updates: fp32 or bf16."""
+    memory_format: str = "contiguous"
+    """The convolutions' tensor layout, the agent's and the encoder's: contiguous (NCHW)
+    or channels_last (NHWC). Float sums are added in another order in each."""
     seed_batch: int = 1
     """Frames per encoder pass: the seeds that run together in one process (and padding
     where fewer do). Float sums of a batched pass differ from a single frame's."""
@@ -100,10 +103,12 @@ class Cell:
         }
 
     def _precision(self) -> dict[str, Any]:
-        """fp32 and a seed batch of 1, the neutral values, are left out: adding the options
-        moved no id."""
+        """fp32, a seed batch of 1 and the contiguous layout, the neutral values, are left
+        out: adding the options moved no id."""
         return {**({} if self.precision == "fp32" else {"precision": self.precision}),
-                **({} if self.seed_batch == 1 else {"seed_batch": self.seed_batch})}
+                **({} if self.seed_batch == 1 else {"seed_batch": self.seed_batch}),
+                **({} if self.memory_format == "contiguous"
+                   else {"memory_format": self.memory_format})}
 
     @property
     def batch_key(self) -> str:
@@ -156,6 +161,7 @@ class Cell:
             eval_episodes=config["eval"]["episodes"],
             eval_epsilon=config["eval"].get("epsilon", 0.0),
             precision=config.get("precision", "fp32"), seed_batch=config.get("seed_batch", 1),
+            memory_format=config.get("memory_format", "contiguous"),
             max_episode_steps=config["env"]["max_episode_steps"], threads=config["threads"],
             hyperparams=config["hyperparams"], env_options=config["env"]["options"],
             encoder=config.get("encoder"),

@@ -215,6 +215,13 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
                 f"{' or '.join(sorted(agent.precisions))}, not {precision}; set precision: "
                 f"fp32 for method '{method_name}'")
         return []
+    memory_format = method.memory_format or model.memory_format
+    if memory_format not in agent.memory_formats:
+        problem(("methods", method_name, "memory_format") if method.memory_format else
+                ("memory_format",), f"agent '{agent.name}' lays out its tensors "
+                f"{' or '.join(sorted(agent.memory_formats))}, not {memory_format}; set "
+                f"memory_format: contiguous for method '{method_name}'")
+        return []
     if precision == "bf16" and not bf16_native():
         problem(precision_at, "this machine's CPU has no bf16 instructions (torch "
                 "reports no native bf16 support), so bf16 would run emulated and slower "
@@ -231,6 +238,7 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
         observation=method.observation, budget=env_entry.budget or model.budget,
         eval_every=model.eval.every, eval_episodes=model.eval.episodes,
         eval_epsilon=model.eval.epsilon, precision=precision, seed_batch=seed_batch,
+        memory_format=memory_format,
         max_episode_steps=env_entry.max_episode_steps or env_spec.max_episode_steps,
         threads=model.threads, env_options=dict(env_entry.options), pixels=pixels,
         threshold=float(env_spec.threshold if env_entry.threshold is None

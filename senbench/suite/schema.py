@@ -14,6 +14,8 @@ from senbench.encoders import EncoderRequest, Training
 
 Precision = Literal["fp32", "bf16"]
 """fp32 or bf16: how an agent's network updates compute (AgentContext.precision)."""
+MemoryFormat = Literal["contiguous", "channels_last"]
+"""How the networks' convolutions lay out their tensors (AgentContext.memory_format)."""
 SeedBatch = Annotated[int, Field(strict=True, ge=1, le=64)]
 """Seeds per process and frames per encoder pass (senbench.run.batch)."""
 
@@ -83,6 +85,8 @@ class MethodEntry(StrictModel):
     """Run only on these envs (default: every env of the suite)."""
     precision: Precision | None = None
     """The arithmetic of the agent's network updates (default: the suite's)."""
+    memory_format: MemoryFormat | None = None
+    """The layout of the convolutions' tensors (default: the suite's)."""
     seed_batch: SeedBatch | None = None
     """Seeds run together in one process (default: the suite's)."""
 
@@ -136,6 +140,13 @@ class SuiteModel(StrictModel):
     the CPU: about 1.4x faster on a CNN update where the CPU has bf16 instructions).
     Part of a cell's computation; an agent that offers no choice refuses bf16 at
     validation. bf16 changes the curves: measure its effect before relying on it."""
+    memory_format: MemoryFormat = "contiguous"
+    """How the convolutions of every network a cell runs — its agent's and its state
+    encoder's — lay out their tensors: ``contiguous`` (NCHW, PyTorch's default) or
+    ``channels_last`` (NHWC, the layout oneDNN's CPU kernels prefer: faster on the CPUs
+    measured in docs/benchmarks.md). Part of a cell's computation: float sums are added in
+    another order, so curves can differ as with another thread count; the learning is the
+    same. An agent that offers no choice refuses channels_last at validation."""
     seed_batch: SeedBatch = 1
     """How many seeds of an encoded method run together in one process, their frames
     encoded in one batch (senbench.run.batch): faster only where the encoder's batched
