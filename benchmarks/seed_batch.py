@@ -44,14 +44,16 @@ methods:
     encoder: {{samples: 64, fraction: 1.0, epochs: 1, test_samples: 32}}
 seeds: {seeds}
 seed_batch: {batch}
+memory_format: {layout}
 budget: {frames}
 eval: {{every: {frames}, episodes: 1}}
 """
 
 
-def cells(folder: Path, seeds: int, batch: int, frames: int):
-    path = folder / f"batch{batch}.yaml"
-    path.write_text(textwrap.dedent(SUITE.format(seeds=seeds, batch=batch, frames=frames)))
+def cells(folder: Path, seeds: int, batch: int, frames: int, layout: str = "contiguous"):
+    path = folder / f"batch{batch}-{layout}.yaml"
+    path.write_text(textwrap.dedent(SUITE.format(seeds=seeds, batch=batch, frames=frames,
+                                                 layout=layout)))
     return load_suite(path, registries()).cells
 
 
