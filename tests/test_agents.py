@@ -1,3 +1,4 @@
+import re
 import tempfile
 
 import numpy as np
@@ -101,6 +102,24 @@ def test_recorder_evaluates_at_zero_every_interval_and_the_budget():
         more = recorder.step(steps)
     assert not more
     assert [r["step"] for r in recorder.rows] == [0, 300, 600, 900, 1000]
+
+
+@pytest.mark.parametrize("reports, said, evaluated", [
+    ([1, 2], "first report was frame 1, not 0", []),
+    ([0, 8, 4], "reported frame 4 after frame 8", [0, 8]),
+    ([0, 10, 11], "reported frame 11 after step() returned False at frame 10", [0, 10]),
+])
+def test_an_agent_that_breaks_the_recorder_protocol_fails_saying_how(reports, said,
+                                                                     evaluated):
+    from senbench.errors import PluginError
+
+    recorder = CellRecorder(10, 5, lambda: {"return": 0.0, "return_std": 0.0, "length": 1.0})
+    with pytest.raises(PluginError, match=re.escape(said)):
+        for steps in reports:
+            recorder.step(steps)
+    assert [r["step"] for r in recorder.rows] == evaluated
+    again = CellRecorder(10, 5, lambda: {"return": 0.0, "return_std": 0.0, "length": 1.0})
+    assert again.step(0) and not again.step(10) and not again.step(10)  # the same frame: fine
 
 
 def test_recorder_reports_the_running_mean_of_the_training_returns_at_each_evaluation():

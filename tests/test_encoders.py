@@ -1,3 +1,4 @@
+import dataclasses
 import hashlib
 import json
 import os
@@ -121,6 +122,26 @@ def test_env_options_name_the_encoder_and_reach_its_sampler():
     _, moved = draw(light, registries(), 30, seed=0)
     assert np.array_equal(states[0], moved[0])  # the same reset...
     assert not np.allclose(states[5:], moved[5:])  # ...then another gravity
+
+
+@pytest.mark.parametrize("broken, said", [
+    (lambda f, o: (f.astype(np.float64), o), "frames of shape (30, 2, 32, 32) and dtype "
+     "float64, not (30, 2, 32, 32) uint8"),
+    (lambda f, o: (f[:-1], o[:-1]), "frames of shape (29, 2, 32, 32)"),
+    (lambda f, o: (f, o[:, :1]), "observations of shape (30, 1) and dtype float32, not "
+     "(30, 2) numbers (env 'mountaincar' has 2 observation values)"),
+    (lambda f, o: (f, o * np.nan), "observations that are NaN or infinite"),
+])
+def test_a_sampler_that_breaks_its_contract_is_refused_naming_it(broken, said, monkeypatch):
+    from senbench.errors import PluginError
+
+    regs = registries()
+    uniform = regs.samplers.get("uniform")
+    faulty = dataclasses.replace(uniform, sample=lambda *a: broken(*uniform.sample(*a)))
+    monkeypatch.setattr(regs.samplers, "get", lambda name: faulty)
+    with pytest.raises(PluginError) as error:
+        draw(request(), regs, 30, seed=0)
+    assert said in str(error.value) and "sampler 'uniform' returned" in str(error.value)
 
 
 @pytest.mark.slow

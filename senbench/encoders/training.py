@@ -25,6 +25,7 @@ import pyarrow.parquet as pq
 
 from senbench.encoders.model import StateEncoder, build_model, observation_bounds
 from senbench.encoders.request import EncoderRequest
+from senbench.errors import PluginError
 from senbench.observe.observations import make_env
 from senbench.plugin.registry import Registries
 from senbench.results.atomic import atomic_file
@@ -59,7 +60,34 @@ def draw(request: EncoderRequest, regs: Registries, count: int, seed: int):
     sampler = regs.samplers.get(request.sampler)
     config = sampler.config(**request.sampler_config)
     frames, targets = sampler.sample(env_spec, count, request.pixels, seed, config)
-    return np.asarray(frames, dtype=np.uint8), np.asarray(targets, dtype=np.float32)
+    return _checked(request, count, np.asarray(frames), np.asarray(targets),
+                    len(observation_bounds(env_spec)[0]))
+
+
+def _checked(request: EncoderRequest, count: int, frames: np.ndarray, targets: np.ndarray,
+             k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The sampler's pairs, refused (naming the plugin and its contract) unless they are
+    what ``SamplerSpec.sample`` promises: a silent cast or broadcast would train an encoder
+    on wrong data."""
+    pixels = request.pixels
+    frame_shape = (count, pixels.stack, *pixels.size)
+    problems = []
+    if frames.dtype != np.uint8 or frames.shape != frame_shape:
+        problems.append(f"frames of shape {frames.shape} and dtype {frames.dtype}, not "
+                        f"{frame_shape} uint8")
+    if targets.shape != (count, k) or not np.issubdtype(targets.dtype, np.number):
+        problems.append(f"observations of shape {targets.shape} and dtype {targets.dtype}, "
+                        f"not {(count, k)} numbers (env '{request.env}' has {k} "
+                        f"observation values)")
+    elif not np.isfinite(targets).all():
+        problems.append("observations that are NaN or infinite")
+    if problems:
+        raise PluginError(f"sampler '{request.sampler}' returned {' and '.join(problems)} "
+                          f"for {count} samples; its sample(env_spec, count, pixels, seed, "
+                          "config) must return (frames (count, stack, H, W) uint8, "
+                          "observations (count, k)) — a fault of the sampler plugin, not of "
+                          "the suite")
+    return frames, targets.astype(np.float32)
 
 
 def train(request: EncoderRequest, regs: Registries, out: Path,

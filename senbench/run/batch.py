@@ -42,6 +42,7 @@ from senbench.run.execute import (
     ProgressCallback,
     RunInfo,
     execute_cell,
+    failure_text,
     lost_cell,
     record_lost_cell,
     reset_peak_rss,
@@ -156,7 +157,8 @@ def execute_cells(cells: list[Cell], info: RunInfo, progress: ProgressCallback |
         encoder = load_or_train(info.encoder_cache, cells[0].encoder_request(),
                                 registries()).laid_out(cells[0].memory_format)
     except Exception as exc:  # each cell records why, as alone
-        results = [lost_cell(c, info, f"could not load its encoder: {exc!r}") for c in cells]
+        results = [lost_cell(c, info, f"could not load its encoder: {failure_text(exc)}")
+                   for c in cells]
         for cell, result in zip(cells, results, strict=True):
             done(cell, result)
         return results

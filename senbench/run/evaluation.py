@@ -29,7 +29,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from senbench.errors import NonFiniteError
+from senbench.errors import NonFiniteError, PluginError
 
 EVAL_SEED = 1_000_003
 PROGRESS_INTERVAL_S = 0.5
@@ -129,6 +129,8 @@ class CellRecorder:
         self._last_eval_step: int | None = None
         self._train_sum, self._train_count = 0.0, 0  # the training episodes' returns so far
         self._next_eval = 0
+        self._reported: int | None = None
+        self._stopped_at: int | None = None
         self._start = time.perf_counter()
         self._last_report = 0.0
 
@@ -136,6 +138,7 @@ class CellRecorder:
         return time.perf_counter() - self._start
 
     def step(self, steps: int) -> bool:
+        self._check_report(steps)
         self.steps = steps
         due = steps >= self._next_eval or steps >= self.budget
         evaluated = due and self._last_eval_step != steps
@@ -162,7 +165,26 @@ class CellRecorder:
                             else None)
             self.on_progress(steps, steps / max(now, 1e-9), self.last_eval,
                              self._last_eval_step, train_return)
+        if steps >= self.stop_at:
+            self._stopped_at = steps
         return steps < self.stop_at
+
+    def _check_report(self, steps: int) -> None:
+        """The agent keeps the Recorder protocol: frames counted from 0, never back, and
+        none past the frame at which ``step`` returned False. Else its curve would hold
+        evaluations at frames the cell never asked for, so the cell fails."""
+        rule = ("Recorder.step(steps) takes the running total of frames, from step(0) "
+                "before the first env step, and the agent stops once it returns False")
+        if self._reported is None and steps != 0:
+            raise PluginError(f"the agent's first report was frame {steps:,}, not 0: it "
+                              f"evaluates the untrained policy there. {rule}")
+        if self._reported is not None and steps < self._reported:
+            raise PluginError(f"the agent reported frame {steps:,} after frame "
+                              f"{self._reported:,}. {rule}")
+        if self._stopped_at is not None and steps > self._stopped_at:
+            raise PluginError(f"the agent reported frame {steps:,} after step() returned "
+                              f"False at frame {self._stopped_at:,}. {rule}")
+        self._reported = steps
 
     def episode(self, steps: int, episode_return: float, length: int) -> None:
         episode_return = float(episode_return)

@@ -61,6 +61,14 @@ class RunInfo:
                    Path(encoder_cache))
 
 
+def failure_text(exc: BaseException) -> str:
+    """What a cell's result records of why it failed: a senbench error's message, which says
+    what to change; else the end of the traceback, which names the plugin's file and line."""
+    if isinstance(exc, SenbenchError):
+        return f"{type(exc).__name__}: {exc}"
+    return "".join(traceback.format_exception(exc)[-12:]).strip()
+
+
 @dataclass(frozen=True)
 class CellOutcome:
     cell_id: str
@@ -128,8 +136,7 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
         raise  # an interrupted cell writes nothing
     except BaseException as exc:  # a cell's failure, even sys.exit, must not stop the grid
         status = "failed"
-        error = (f"{type(exc).__name__}: {exc}" if isinstance(exc, SenbenchError)  # says why
-                 else "".join(traceback.format_exception(exc)[-12:]).strip())
+        error = failure_text(exc)
     ended = datetime.now(UTC)
     wall = (ended - started).total_seconds()
     rows = list(recorder.rows) if recorder else []

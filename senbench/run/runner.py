@@ -25,7 +25,7 @@ from senbench.results.store import (
 )
 from senbench.run import ray_executor
 from senbench.run.claims import CellClaims, running_cells
-from senbench.run.execute import RunInfo, record_lost_cell
+from senbench.run.execute import RunInfo, failure_text, record_lost_cell
 from senbench.run.processes import run_processes, run_serial, usable_cores
 from senbench.run.progress import NullProgress, Progress
 from senbench.run.reuse import copy_cell, finished_cells
@@ -185,7 +185,7 @@ def prepare_encoders(todo: list[Cell], directory: Path, info: RunInfo,
             load_or_train(info.encoder_cache, cells[0].encoder_request(), registries(),
                           progress.log)
         except Exception as exc:
-            why = f"{exc}" if isinstance(exc, SenbenchError) else f"{exc!r}"  # says what to do
+            why = failure_text(exc)
             for cell in cells:
                 outcome = record_lost_cell(cell, directory, info,
                                            f"could not load or train its encoder: {why}")
