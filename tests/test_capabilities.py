@@ -226,7 +226,8 @@ methods:
     message = problems(write_suite, regs, text)
     assert "1 problem\n" in message, message
     assert ("suite.yaml:6: methods.sarsa.agent: agent 'sarsa' needs finite observation bounds "
-            "(it scales each dimension by them), but env 'cartpole' has infinite ones on 1, 3; "
+            "(its spec declares needs_bounded_observations), but env 'cartpole' has infinite "
+            "ones on 1, 3; "
             "restrict the method with 'envs: [...]'") in message, message
     # named by the env's observation labels where it has them; on encoded too
     labelled = problems(write_suite, regs, """\
@@ -239,9 +240,9 @@ methods:
     observation: encoded
     encoder: {sampler: rollout}
 """)
-    assert ("methods.sen-sarsa.agent: agent 'sarsa' needs finite observation bounds (it "
-            "scales each dimension by them), but env 'cartpole-observed' has infinite ones on "
-            "cart velocity, pole velocity") in labelled, labelled
+    assert ("methods.sen-sarsa.agent: agent 'sarsa' needs finite observation bounds (its "
+            "spec declares needs_bounded_observations), but env 'cartpole-observed' has "
+            "infinite ones on cart velocity, pole velocity") in labelled, labelled
     # an agent that needs no bounds learns there
     ppo = load_suite(write_suite(text.replace("agent: sarsa", "agent: ppo") + TAIL), regs)
     assert len(ppo.cells) == 1

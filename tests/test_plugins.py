@@ -154,6 +154,23 @@ def test_register_checks_the_type_and_names_the_distribution():
         register({"name": "not-a-spec"})
 
 
+def test_a_misspelled_hook_is_refused_not_kept_uncalled():
+    import types
+
+    plugin = types.ModuleType("typo_plugin")
+
+    @hookimpl
+    def register_env(register):  # register_envs, misspelled: pluggy would never call it
+        raise AssertionError("never called")
+
+    plugin.register_env = register_env
+    with pytest.raises(ValueError, match=r"@hookimpl 'register_env' \(did you mean "
+                       r"'register_envs'\?\) is no senbench hook; the hooks are "
+                       "register_agents, register_encoders, register_envs, register_samplers"):
+        plugins.register_plugin(plugin, distribution="senbench-typo")
+    assert plugins.pm.get_plugin("senbench-typo:typo_plugin") is None  # not left registered
+
+
 def test_every_hook_is_documented_on_the_plugins_page():
     from pathlib import Path
 
@@ -277,7 +294,7 @@ def test_broken_plugins_disable_themselves_not_the_tool(broken_env, tmp_path):
     ran = senbench_cli(broken_env, "run", str(tmp_path / "two.yaml"), "--workers", "2",
                        "--results", str(tmp_path / "results"))  # cells from a process server
     assert ran.returncode == 0, ran.stderr
-    assert ran.stderr.count("warning:") == 4 and "Traceback" not in ran.stderr
+    assert ran.stderr.count("warning:") == 4 and "Traceback" not in ran.stderr, ran.stderr
     assert "2 finished, 0 failed" in ran.stdout
 
 

@@ -128,6 +128,33 @@ def test_a_cell_that_dies_fails_alone(write_suite, tmp_path, test_agents):
 
 
 
+def test_a_process_lost_after_writing_its_result_keeps_it(write_suite, tmp_path):
+    """A worker killed between writing its cell's file and telling the runner: the runner
+    reads the outcome from the file rather than overwrite a finished curve with a failure;
+    an earlier run's finished file (a --force rerun that died) is kept too."""
+    from datetime import UTC, datetime
+
+    from senbench.run.execute import RunInfo, record_lost_cell
+
+    before = datetime.now(UTC)
+    suite, summary = run(write_suite, tmp_path, SARSA)
+    cell, directory = suite.cells[0], tmp_path / "results" / "small" / "cells"
+    path = directory / f"{cell.id}.parquet"
+    finished, info = path.read_bytes(), RunInfo.gather(tmp_path / "encoders")
+    own = record_lost_cell(cell, directory, info, "was killed by signal 9", since=before)
+    assert (own.status, own.error) == ("ok", None) and path.read_bytes() == finished
+    assert own.final_eval == read_results(tmp_path / "results" / "small").query(
+        f"cell_id == '{cell.id}' and kind == 'eval'")["return"].iloc[-1]
+    rerun = record_lost_cell(cell, directory, info, "was killed by signal 9",
+                             since=datetime.now(UTC))
+    assert rerun.status == "failed" and rerun.error.endswith(
+        "was killed by signal 9; its earlier finished result is kept")
+    assert path.read_bytes() == finished
+    path.unlink()
+    lost = record_lost_cell(cell, directory, info, "was killed by signal 9", since=before)
+    assert lost.status == "failed" and finished_status(path) == "failed"
+
+
 def _wait_for_files(directory, count, process, timeout=90):
     deadline = time.time() + timeout
     while time.time() < deadline:

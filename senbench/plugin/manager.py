@@ -16,6 +16,7 @@ something a disabled plugin provides.
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import importlib.util
 import os
@@ -79,13 +80,15 @@ def load_plugins() -> None:
     found.sort(key=lambda ep: (_dist_name(ep) != BUILTIN_DISTRIBUTION, _dist_name(ep), ep.name))
     for ep in found:
         dist_name = _dist_name(ep)
-        if dist_name != BUILTIN_DISTRIBUTION and not allow_third_party:
-            continue
         name = f"{dist_name}:{ep.name}"
         if name in _from_entry_points:  # the same distribution seen twice on sys.path
             continue
         _from_entry_points.add(name)
         origin = Origin(dist_name, ep.dist.version if ep.dist is not None else "")
+        if dist_name != BUILTIN_DISTRIBUTION and not allow_third_party:
+            _skipped.append(PluginProblem(ep.name, origin, f"{NO_THIRD_PARTY} switches "
+                                          "third-party plugins off", quiet=True))
+            continue
         if ep.name in off or dist_name in off:
             _skipped.append(PluginProblem(ep.name, origin, f"{DISABLE} names it", quiet=True))
             continue
@@ -96,13 +99,29 @@ def load_plugins() -> None:
                 ep.name, origin, f"it failed to import: {describe(exc, _ep_roots(ep))}"))
             continue
         try:
-            pm.register(plugin, name=name)
-        except Exception as exc:  # pluggy's validation of its hooks
+            _register(plugin, name)
+        except Exception as exc:  # pluggy's validation of its hooks, or a name unknown
             _skipped.append(PluginProblem(
                 ep.name, origin, f"its hooks are invalid: {describe(exc, [])}"))
             continue
         _add(name, ep.name, origin)
         _modules[name] = ep.value.split(":")[0].strip()
+
+
+def _register(plugin: object, name: str) -> None:
+    """Register ``plugin`` with pluggy, refusing a ``@hookimpl`` whose name is no senbench
+    hook (pluggy would keep it, never called: a misspelled hook registers nothing)."""
+    pm.register(plugin, name=name)
+    unknown = sorted(caller.name for caller in pm.get_hookcallers(plugin) or []
+                     if not caller.has_spec())
+    if unknown:
+        pm.unregister(plugin)
+        hooks = sorted(n for n in dir(hookspecs) if n.startswith("register_"))
+        close = {n: difflib.get_close_matches(n, hooks, n=1) for n in unknown}
+        said = ", ".join(f"'{n}'" + (f" (did you mean '{close[n][0]}'?)" if close[n] else "")
+                         for n in unknown)
+        raise ValueError(f"@hookimpl {said} is no senbench hook; the hooks are "
+                         f"{', '.join(hooks)}")
 
 
 def entry_point_modules() -> list[str]:
@@ -128,7 +147,7 @@ def register_plugin(plugin: object, distribution: str = "local", version: str = 
     e.g. from a test or a notebook."""
     load_plugins()
     name = f"{distribution}:{getattr(plugin, '__name__', id(plugin))}"
-    pm.register(plugin, name=name)
+    _register(plugin, name)
     _add(name, getattr(plugin, "__name__", type(plugin).__name__), Origin(distribution, version))
     if isinstance(plugin, ModuleType):
         _registered_modules.append((plugin.__name__, distribution, version))

@@ -143,6 +143,16 @@ def cell_row(path: Path, columns: list[str]) -> dict[str, Any] | None:
     return None
 
 
+def last_eval_return(path: Path) -> float | None:
+    """The return of a cell file's last evaluation, or None if it has none."""
+    try:
+        table = pq.read_table(path, columns=["kind", "return"])
+    except (FileNotFoundError, pa.ArrowInvalid, OSError):
+        return None
+    returns = [r["return"] for r in table.to_pylist() if r["kind"] == "eval"]
+    return returns[-1] if returns else None
+
+
 def finished_status(path: Path) -> str | None:
     """The status recorded in a cell file, or None if there is no readable file."""
     row = cell_row(path, ["status"])

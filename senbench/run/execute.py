@@ -25,7 +25,7 @@ from senbench.errors import SenbenchError
 from senbench.observe.observations import make_env
 from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
-from senbench.results.store import write_cell
+from senbench.results.store import cell_path, cell_row, last_eval_return, write_cell
 from senbench.run.evaluation import CellRecorder, Evaluator
 from senbench.run.provenance import cpu_description, git_commit
 from senbench.suite.cell import Cell
@@ -201,9 +201,20 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, how: str) -> CellOutcome:
-    """A cell that ended without recording itself (its process died, or writing its result
-    failed): record it as failed, with no curve."""
+def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, how: str,
+                     since: datetime | None = None) -> CellOutcome:
+    """A cell that ended without telling its outcome (its process died, or writing its
+    result failed): record it as failed, with no curve — unless its file holds a finished
+    result. One written since ``since`` (when its process started) is the cell's own, the
+    process having died between writing it and telling (its outcome is read from it); an
+    older one (an earlier run's, under --force) is kept, and this attempt reported failed."""
+    row = cell_row(cell_path(directory, cell.id), ["status", "started_at", "cell_wall_s"])
+    if row is not None and row["status"] == "ok":
+        if since is not None and row["started_at"] >= since:
+            return CellOutcome(cell.id, cell.label, "ok", None,
+                               last_eval_return(cell_path(directory, cell.id)),
+                               row["cell_wall_s"])
+        return lost_cell(cell, info, how + "; its earlier finished result is kept")[1]
     rows, outcome = lost_cell(cell, info, how)
     write_cell(directory, cell.id, rows)
     return outcome

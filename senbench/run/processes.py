@@ -15,6 +15,7 @@ import sys
 import threading
 import time
 from contextlib import contextmanager
+from datetime import UTC, datetime
 from multiprocessing.connection import wait as connection_wait
 from pathlib import Path
 from typing import Any
@@ -124,6 +125,7 @@ def run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int
     context = _context()
     schedule = schedule or Schedule(todo)
     running: dict[str, tuple[list[Cell], Any]] = {}  # by the first cell's id
+    launched: dict[str, datetime] = {}  # when each process was started
     pipes: dict[str, Any] = {}
     outcomes: dict[str, CellOutcome] = {}
     extra = plugins.registered_module_names()
@@ -144,6 +146,7 @@ def run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int
                 process = context.Process(
                     target=_cell_process, daemon=True, name=f"senbench-cell-{key}",
                     args=(batch, directory, info, writer, extra, os.getpid()))
+                launched[key] = datetime.now(UTC)
                 with signals_held():  # a Ctrl-C mid-start would orphan a half-made cell
                     process.start()
                     running[key] = (batch, process)
@@ -168,10 +171,11 @@ def run_processes(todo: list[Cell], directory: Path, info: RunInfo, workers: int
                     outcome = outcomes.pop(cell.id, None)
                     if outcome is None:
                         outcome = record_lost_cell(cell, directory, info,
-                                                   _death(process.exitcode))
+                                                   _death(process.exitcode), launched[key])
                     finish(cell, outcome)
                 process.join(timeout=5)
                 del running[key]
+                launched.pop(key)
                 pipes.pop(key).close()
     except BaseException:
         for _, process in running.values():

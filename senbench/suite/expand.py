@@ -218,9 +218,10 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
     memory_format = method.memory_format or model.memory_format
     if memory_format not in agent.memory_formats:
         problem(("methods", method_name, "memory_format") if method.memory_format else
-                ("memory_format",), f"agent '{agent.name}' lays out its tensors "
-                f"{' or '.join(sorted(agent.memory_formats))}, not {memory_format}; set "
-                f"memory_format: contiguous for method '{method_name}'")
+                ("memory_format",), f"agent '{agent.name}' offers memory_format "
+                f"{' or '.join(sorted(agent.memory_formats))}, not {memory_format} (its "
+                f"spec's memory_formats); set memory_format: contiguous for method "
+                f"'{method_name}'")
         return []
     if precision == "bf16" and not bf16_native():
         problem(precision_at, "this machine's CPU has no bf16 instructions (torch "

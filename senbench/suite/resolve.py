@@ -174,8 +174,9 @@ def check_capabilities(agent: Any, env_name: str, env_spec: Any, observation: st
             problem(at("agent"), f"agent '{agent.name}' needs finite observation bounds, but "
                     f"env '{env_name}' could not be built to read them: {unbounded}")
         elif unbounded:
-            problem(at("agent"), f"agent '{agent.name}' needs finite observation bounds (it "
-                    f"scales each dimension by them), but env '{env_name}' has infinite ones "
+            problem(at("agent"), f"agent '{agent.name}' needs finite observation bounds (its "
+                    f"spec declares needs_bounded_observations), but env '{env_name}' has "
+                    f"infinite ones "
                     f"on {', '.join(unbounded)}; restrict the method with 'envs: [...]', use "
                     "another agent, or give the env plugin an observation space with finite "
                     "bounds")
@@ -253,7 +254,8 @@ def check_batchable(method_name: str, method: Any, model: Any, agent: Any, regs:
     if not agent.seed_batching:
         able = sorted(n for n in regs.agents.names() if regs.agents.get(n).seed_batching)
         problem(where, f"agent '{agent.name}' cannot run beside other seeds in one process "
-                "(it draws from process-global random generators); agents that can: "
+                "(its spec does not declare seed_batching: an agent that draws from "
+                "process-global random generators must not); agents that can: "
                 f"{', '.join(able) or 'none'}. {fix[0].upper()}{fix[1:]}")
         return False
     return True
