@@ -62,11 +62,15 @@ def run_serial(schedule: Schedule, directory: Path, info: RunInfo, progress: Pro
 
 def _context() -> Any:
     """Fork cells from a server that imported senbench, torch and the plugins once: a cell
-    starts in milliseconds, not the seconds a fresh interpreter needs to import torch."""
+    starts in milliseconds, not the seconds a fresh interpreter needs to import torch. The
+    server imports this module too (and with it everything a cell runs), so a cell runs the
+    code its run started with: source edited while a long run or study goes on is not
+    imported half-new into its later cells (a new module beside an old one it imports
+    from failed every cell of a study that way)."""
     if sys.platform != "linux":
         return mp.get_context("spawn")
     context = mp.get_context("forkserver")
-    modules = ["senbench.run.execute", "torch"]
+    modules = [__name__, "senbench.run.execute", "torch"]
     modules += plugins.entry_point_modules()  # not a broken one: it would stop the server
     context.set_forkserver_preload(modules)
     return context
