@@ -60,8 +60,9 @@ def test_an_agent_without_the_choice_is_refused_naming_it(write_suite, test_agen
     with pytest.raises(SuiteError) as error:
         load_suite(write_suite(text), test_agents)
     text = str(error.value)
-    assert "memory_format: agent 'crash' offers memory_format contiguous, not channels_last " \
-        "(its spec's memory_formats)" in text and "set memory_format: contiguous for method 'crash'" in text
+    assert ("memory_format: agent 'crash' offers memory_format contiguous, not "
+            "channels_last (its spec's memory_formats)") in text
+    assert "set memory_format: contiguous for method 'crash'" in text
 
 
 def _dqn(memory_format: str):

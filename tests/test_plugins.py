@@ -1,4 +1,5 @@
 import inspect
+import re
 import subprocess
 import sys
 import textwrap
@@ -169,6 +170,31 @@ def test_a_misspelled_hook_is_refused_not_kept_uncalled():
                        "register_agents, register_encoders, register_envs, register_samplers"):
         plugins.register_plugin(plugin, distribution="senbench-typo")
     assert plugins.pm.get_plugin("senbench-typo:typo_plugin") is None  # not left registered
+
+
+@pytest.mark.parametrize("change, said", [
+    ({"actions": frozenset({"Discrete"})}, "actions names ['Discrete']; it chooses from "
+     "discrete, continuous"),
+    ({"observations": frozenset({"image"})}, "observations names ['image']; it chooses "
+     "from state, pixels, encoded"),
+    ({"memory_formats": frozenset({"nhwc"})}, "memory_formats names ['nhwc']"),
+    ({"defaults": {"mountaincar": senbench.AgentDefaults({"afterr": 3}, "a typo")}},
+     "defaults['mountaincar'] sets ['afterr'], which its config CrashConfig has no field for"),
+])
+def test_an_agent_spec_that_names_what_does_not_exist_is_refused_when_built(change, said):
+    from plugin_for_tests import CrashAgent, CrashConfig
+
+    spec = dict(name="odd", make=CrashAgent, config=CrashConfig,
+                actions=frozenset({"discrete"}), observations=frozenset({"state"}))
+    with pytest.raises(ValueError, match=re.escape(f"agent 'odd': {said}")):
+        senbench.AgentSpec(**{**spec, **change})
+
+
+def test_the_observation_kinds_agents_choose_from_are_the_ones_senbench_builds():
+    from senbench.observe.observations import OBSERVATIONS
+    from senbench.plugin.specs import OBSERVATION_KINDS
+
+    assert sorted(OBSERVATIONS) == sorted(OBSERVATION_KINDS)
 
 
 def test_every_hook_is_documented_on_the_plugins_page():

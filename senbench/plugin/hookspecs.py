@@ -1,8 +1,8 @@
 """The four hooks a senbench plugin may implement.
 
 Each hook is handed a typed ``register`` callable: a plugin calls it once per thing it
-provides. ``register`` checks the type at once, so a mistake fails at start-up, naming the
-plugin's distribution, rather than deep inside a run.
+provides. ``register`` checks the type at once, so a mistake leaves the plugin out at
+start-up, with a warning naming its distribution, rather than failing deep inside a run.
 """
 
 from __future__ import annotations

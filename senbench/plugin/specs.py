@@ -9,12 +9,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol
+from typing import Any, Literal, Protocol, get_args
 
 import numpy as np
 
 ActionKind = Literal["discrete", "continuous"]
 
+OBSERVATION_KINDS = ("state", "pixels", "encoded")
+"""The observations senbench builds (senbench.observe.observations), which
+``AgentSpec.observations`` chooses from."""
 ENV_CAPABILITIES = ("observe", "set_state", "render")
 """The optional :class:`EnvSpec` functions a sampler may need (``SamplerSpec.needs``): an
 env can do what it has the function for."""
@@ -223,6 +226,20 @@ class AgentSpec:
     def __post_init__(self) -> None:
         _check_search_space("agent", self.name, self.config, self.search_space)
         _check_min_frame_size("agent", self.name, self.min_frame_size, True)
+        for field_name, known in (("actions", get_args(ActionKind)),
+                                  ("observations", OBSERVATION_KINDS),
+                                  ("precisions", ("fp32", "bf16")),
+                                  ("memory_formats", ("contiguous", "channels_last"))):
+            unknown = sorted(set(getattr(self, field_name)) - set(known))
+            if unknown:
+                raise ValueError(f"agent '{self.name}': {field_name} names {unknown}; it "
+                                 f"chooses from {', '.join(known)}")
+        fields = getattr(self.config, "__dataclass_fields__", {})
+        for key, defaults in self.defaults.items():
+            unknown = sorted(set(defaults.values) - set(fields))
+            if fields and unknown:
+                raise ValueError(f"agent '{self.name}': defaults['{key}'] sets {unknown}, "
+                                 f"which its config {self.config.__name__} has no field for")
         for key in self.defaults:
             env, _, observation = key.partition(":")
             if not env or (observation and observation not in self.observations):
