@@ -25,6 +25,19 @@ class Count:
         pass
 
 
+def timed_settings(agent_name: str, observation: str, env_name: str) -> dict[str, Any]:
+    """The agent's defaults for the env and observation, learning from the first frame (no
+    warm-up), PPO with a rollout and its update within a thousand frames."""
+    agent = registries().agents.get(agent_name)
+    defaults = agent.defaults_for(env_name, observation)
+    values = dict(defaults.values) if defaults else {}
+    if "learning_starts" in agent.config.__dataclass_fields__:
+        values["learning_starts"] = 0  # time learning, not the warm-up
+    if agent_name == "ppo":
+        values.update(n_envs=4, n_steps=256)  # a rollout and its update within the frames
+    return values
+
+
 def learning_rate(agent_name: str, observation: str, env_name: str, frames: int,
                   hyperparams: dict[str, Any], precision: str = "fp32",
                   encoder: Any = None, memory_format: str = "contiguous") -> float:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from learners import learning_rate
+from learners import learning_rate, timed_settings
 
 from senbench.encoders import EncoderRequest, StateEncoder, build_model, observation_bounds
 from senbench.observe.pixels import PixelSpec
@@ -59,13 +59,7 @@ def encoder_rates(batch: int, passes: int = 200) -> dict[str, float]:
 
 def learner_rates(agent_name: str, observation: str, env_name: str,
                   frames: int) -> dict[str, float]:
-    agent = registries().agents.get(agent_name)
-    defaults = agent.defaults_for(env_name, observation)
-    values = dict(defaults.values) if defaults else {}
-    if "learning_starts" in agent.config.__dataclass_fields__:
-        values["learning_starts"] = 0  # time learning, not the warm-up
-    if agent_name == "ppo":
-        values.update(n_envs=4, n_steps=256)  # a rollout and its update within the frames
+    values = timed_settings(agent_name, observation, env_name)
     seconds = dict.fromkeys(FORMATS, 0.0)
     base = paper_encoder(env_name) if observation == "encoded" else None
     for _ in range(ROUNDS):

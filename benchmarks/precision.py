@@ -9,9 +9,8 @@ and convolutions on a CPU with bf16 instructions, and costs where they are small
 
 from __future__ import annotations
 
-from learners import learning_rate
+from learners import learning_rate, timed_settings
 
-from senbench.plugin.manager import registries
 from senbench.run.processes import set_threads
 
 LEARNERS = [  # (agent, observation, env, frames timed)
@@ -25,13 +24,7 @@ LEARNERS = [  # (agent, observation, env, frames timed)
 
 def frames_per_second(agent_name: str, observation: str, env_name: str, frames: int,
                       precision: str) -> float:
-    agent = registries().agents.get(agent_name)
-    defaults = agent.defaults_for(env_name, observation)
-    values = dict(defaults.values) if defaults else {}
-    if "learning_starts" in agent.config.__dataclass_fields__:
-        values["learning_starts"] = 0  # time learning, not the warm-up
-    if agent_name == "ppo":
-        values.update(n_envs=4, n_steps=256)  # a rollout and its update within the frames
+    values = timed_settings(agent_name, observation, env_name)
     return learning_rate(agent_name, observation, env_name, frames, values, precision)
 
 

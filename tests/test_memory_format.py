@@ -5,6 +5,7 @@ at validation."""
 import numpy as np
 import pytest
 import torch
+from suites_for_tests import SEN_SARSA
 
 from senbench.encoders import EncoderRequest, StateEncoder, build_model, observation_bounds
 from senbench.errors import SuiteError
@@ -140,22 +141,8 @@ def test_an_encoded_cell_runs_channels_last_and_records_it(write_suite, tmp_path
     from senbench.results.store import read_results
     from senbench.run.runner import run_suite
 
-    text = """\
-    name: sen
-    envs:
-      mountaincar: {}
-    methods:
-      sen-sarsa:
-        agent: sarsa
-        observation: encoded
-        encoder: {config: {widths: [8, 8, 16, 16], hidden: 32}, samples: 300,
-                  fraction: 1.0, epochs: 2, test_samples: 100}
-        pixels: {height: 32, width: 32}
-    seeds: 1
-    budget: 300
-    eval: {every: 300, episodes: 1}
-    memory_format: channels_last
-    """
+    text = ("name: sen\nenvs: {mountaincar: {}}\nmethods:\n" + SEN_SARSA + "seeds: 1\n"
+            "budget: 300\neval: {every: 300, episodes: 1}\nmemory_format: channels_last\n")
     summary = run_suite(load_suite(write_suite(text), registries()), tmp_path)
     assert summary.ok == 1, [o.error for o in summary.failed]
     rows = read_results(tmp_path / "sen")
