@@ -1,3 +1,4 @@
+import re
 import subprocess
 import sys
 
@@ -118,6 +119,12 @@ def test_report_leaves_out_cells_of_an_earlier_version_of_the_suite(write_suite,
     assert summarize(current).set_index("method").loc["sarsa-state", "seeds_ok"] == 2
     everything = read_results(tmp_path / "rep", include_stale=True)
     assert summarize(everything).set_index("method").loc["sarsa-state", "seeds_ok"] == 4
+    # another budget: its cells are another row, not more seeds of the same one
+    shorter = re.sub(r"budget: \d+", "budget: 600", edited)
+    run_suite(load_suite(write_suite(shorter), registries()), tmp_path)
+    rows = summarize(read_results(tmp_path / "rep", include_stale=True))
+    assert rows.set_index("budget")["seeds_ok"].to_dict() == {600: 2, int(re.search(
+        r"budget: (\d+)", edited)[1]): 4}
 
 
 def test_a_foreign_file_in_the_results_folder_is_a_clear_error(tmp_path):

@@ -101,15 +101,17 @@ def cell_labels(config: str | None) -> dict:
 def summarize(results: pd.DataFrame) -> pd.DataFrame:
     """Per env × method × variant, over finished seeds: for final return, frames to
     threshold and AUC, the IQM with its 95% bootstrap interval and the mean ± std; how many
-    seeds finished and failed, and how many reached the threshold."""
+    seeds finished and failed, and how many reached the threshold. Cells of another budget
+    (an earlier version of the suite, read with ``include_stale``) make a row of their own:
+    their seeds are other runs, their frames to threshold and AUC other scales."""
     cells = per_cell(results)
     rows = []
-    keys = ["suite", "env", "method", "variant"]
-    for (suite, env, method, variant), group in cells.groupby(keys, sort=True):
+    keys = ["suite", "env", "method", "variant", "budget"]
+    for (suite, env, method, variant, budget), group in cells.groupby(keys, sort=True):
         ok = group[group["status"] == "ok"]
         row = {
             "suite": suite, "env": env, "method": method, "variant": variant,
-            "threshold": group["threshold"].iloc[0], "budget": int(group["budget"].max()),
+            "threshold": group["threshold"].iloc[0], "budget": int(budget),
             "seeds_ok": len(ok), "seeds_failed": int((group["status"] != "ok").sum()),
             "reached": int(ok["reached"].sum()),
             "initial_mean": _mean(ok["initial_return"]),

@@ -40,9 +40,10 @@ def show_report(summary: pd.DataFrame, console: Console) -> None:
         where = f"{suite} / {env}" if several else env
         charged = bool(rows["labelled_frames"].any())
         controls = bool(rows["control"].astype(bool).any())
+        budgets = sorted(rows["budget"].unique())
         table = Table(
             title=f"{where}: evaluation return; threshold {rows['threshold'].iloc[0]:g}, "
-            f"budget {rows['budget'].max():,} frames",
+            f"budget {' or '.join(f'{b:,}' for b in budgets)} frames",
             caption="each metric: IQM, its [95% stratified bootstrap CI], mean ± std, over "
             f"finished seeds. final: mean of the last {FINAL_WINDOW} evaluations. frames to "
             f"threshold: from where the trailing mean of {THRESHOLD_WINDOW} evaluations "
@@ -66,7 +67,8 @@ def show_report(summary: pd.DataFrame, console: Console) -> None:
             table.add_column("reference", justify="right")
         table.add_column("seeds ok / failed", justify="right")
         for row in rows.itertuples():
-            name = escape(label(row.method, row.variant))
+            name = escape(label(row.method, row.variant)
+                          + (f" @ {row.budget:,} frames" if len(budgets) > 1 else ""))
             if row.reached:
                 steps = f"{_cell(row, 'steps', 0)}\n({row.reached}/{row.seeds_ok} reached)"
             else:
