@@ -38,11 +38,16 @@ def test_contiguous_is_left_out_of_the_id_and_channels_last_is_in_it(write_suite
     assert nhwc.batch_key != nchw.batch_key  # never in one seed batch
 
 
-def test_a_suite_wide_layout_applies_to_every_method(write_suite):
+def test_a_suite_wide_layout_applies_to_every_method_on_frames(write_suite):
     text = (SUITE.replace("{agent: dqn, observation: pixels, memory_format: channels_last}",
                           "{agent: sarsa}") + "memory_format: channels_last\n")
-    cells = load_suite(write_suite(text), registries()).cells
-    assert {c.memory_format for c in cells} == {"channels_last"}
+    cells = {c.method: c for c in load_suite(write_suite(text), registries()).cells}
+    assert cells["dqn-pixels"].memory_format == "channels_last"
+    # a state cell has no convolutions: it stays as it was, its id too
+    assert cells["dqn-nhwc"].memory_format == "contiguous"
+    plain = load_suite(write_suite(text.replace("memory_format: channels_last\n", "")),
+                       registries()).cells
+    assert {c.method: c.id for c in plain}["dqn-nhwc"] == cells["dqn-nhwc"].id
 
 
 def test_an_unknown_layout_is_refused_at_its_line(write_suite):
@@ -54,16 +59,43 @@ def test_an_unknown_layout_is_refused_at_its_line(write_suite):
     assert "'contiguous' or 'channels_last'" in text
 
 
-def test_an_agent_without_the_choice_is_refused_naming_it(write_suite, test_agents):
-    text = ("name: layout\nenvs: {mountaincar: {}}\nmethods:\n  crash: {agent: crash}\n"
+def test_an_agent_without_the_choice_is_refused_naming_it(write_suite, monkeypatch):
+    import dataclasses
+
+    regs = registries()
+    dqn = regs.agents.get("dqn")
+    plain = dataclasses.replace(dqn, memory_formats=frozenset({"contiguous"}))
+    monkeypatch.setattr(regs.agents, "get", lambda name: plain)
+    text = ("name: layout\nenvs: {mountaincar: {}}\nmethods:\n"
+            "  plain: {agent: dqn, observation: pixels}\n"
             "seeds: [0]\nbudget: 100\neval: {every: 100, episodes: 1}\n"
             "memory_format: channels_last\n")
     with pytest.raises(SuiteError) as error:
-        load_suite(write_suite(text), test_agents)
-    text = str(error.value)
-    assert ("memory_format: agent 'crash' offers memory_format contiguous, not "
-            "channels_last (its spec's memory_formats)") in text
-    assert "set memory_format: contiguous for method 'crash'" in text
+        load_suite(write_suite(text), regs)
+    said = str(error.value)
+    assert ("memory_format: agent 'dqn' offers memory_format contiguous, not "
+            "channels_last (its spec's memory_formats)") in said
+    assert "set memory_format: contiguous for method 'plain'" in said
+    # on the state it is not asked for: there are no convolutions to lay out
+    state = text.replace("observation: pixels", "observation: state")
+    assert len(load_suite(write_suite(state), regs).cells) == 1
+
+
+def test_an_encoder_without_the_choice_is_refused_naming_it(write_suite, monkeypatch):
+    import dataclasses
+
+    regs = registries()
+    resnet = regs.encoders.get("sen-resnet")
+    view_only = dataclasses.replace(resnet, memory_formats=frozenset({"contiguous"}))
+    monkeypatch.setattr(regs.encoders, "get", lambda name: view_only)
+    text = ("name: layout\nenvs: {mountaincar: {}}\nmethods:\n"
+            "  sen: {agent: sarsa, observation: encoded, memory_format: channels_last,\n"
+            "        encoder: {}}\n"
+            "seeds: [0]\nbudget: 100\neval: {every: 100, episodes: 1}\n")
+    with pytest.raises(SuiteError) as error:
+        load_suite(write_suite(text), regs)
+    assert ("methods.sen.memory_format: encoder 'sen-resnet' offers memory_format "
+            "contiguous, not channels_last") in str(error.value)
 
 
 def _dqn(memory_format: str):

@@ -197,6 +197,27 @@ def test_the_observation_kinds_agents_choose_from_are_the_ones_senbench_builds()
     assert sorted(OBSERVATIONS) == sorted(OBSERVATION_KINDS)
 
 
+def test_an_optional_hook_of_a_later_senbench_is_kept():
+    import types
+
+    plugin = types.ModuleType("later_plugin")
+
+    @hookimpl(optionalhook=True)
+    def register_reporters(register):  # a hook this senbench does not have
+        raise AssertionError("never called")
+
+    @hookimpl
+    def register_envs(register):
+        pass
+
+    plugin.register_reporters, plugin.register_envs = register_reporters, register_envs
+    plugins.register_plugin(plugin, distribution="senbench-later")
+    try:
+        assert plugins.pm.get_plugin("senbench-later:later_plugin") is plugin
+    finally:
+        plugins.unregister_plugin(plugin)
+
+
 def test_every_hook_is_documented_on_the_plugins_page():
     from pathlib import Path
 

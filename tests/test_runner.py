@@ -4,6 +4,7 @@ import signal
 import subprocess
 import sys
 import time
+from datetime import UTC, datetime
 
 import plugin_for_tests
 import psutil
@@ -130,8 +131,9 @@ def test_a_cell_that_dies_fails_alone(write_suite, tmp_path, test_agents):
 
 def test_a_process_lost_after_writing_its_result_keeps_it(write_suite, tmp_path):
     """A worker killed between writing its cell's file and telling the runner: the runner
-    reads the outcome from the file rather than overwrite a finished curve with a failure;
-    an earlier run's finished file (a --force rerun that died) is kept too."""
+    reads the outcome from the file rather than overwrite a finished curve with a failure.
+    An earlier run's finished file (a --force rerun that died) is replaced, as a rerun that
+    raises replaces it."""
     from datetime import UTC, datetime
 
     from senbench.run.execute import RunInfo, record_lost_cell
@@ -147,12 +149,30 @@ def test_a_process_lost_after_writing_its_result_keeps_it(write_suite, tmp_path)
         f"cell_id == '{cell.id}' and kind == 'eval'")["return"].iloc[-1]
     rerun = record_lost_cell(cell, directory, info, "was killed by signal 9",
                              since=datetime.now(UTC))
-    assert rerun.status == "failed" and rerun.error.endswith(
-        "was killed by signal 9; its earlier finished result is kept")
-    assert path.read_bytes() == finished
-    path.unlink()
-    lost = record_lost_cell(cell, directory, info, "was killed by signal 9", since=before)
-    assert lost.status == "failed" and finished_status(path) == "failed"
+    assert rerun.status == "failed" and rerun.error.endswith("was killed by signal 9")
+    assert finished_status(path) == "failed"
+
+
+def test_a_lost_worker_is_judged_by_what_it_wrote_since_it_started(write_suite, tmp_path,
+                                                                   test_agents, monkeypatch):
+    """The runner hands record_lost_cell the time the cell's process started, so a file
+    the process wrote before dying counts and an older one does not."""
+    import senbench.run.processes as processes
+
+    seen = []
+    original = processes.record_lost_cell
+
+    def spy(cell, directory, info, how, since=None):
+        seen.append(since)
+        return original(cell, directory, info, how, since)
+
+    monkeypatch.setattr(processes, "record_lost_cell", spy)
+    text = FAILING.replace("crash-state: {agent: crash, hyperparams: {after: 700}}",
+                           "die-state: {agent: die}")
+    started = datetime.now(UTC)
+    _, summary = run(write_suite, tmp_path, text, workers=2)
+    assert len(summary.failed) == 1 and len(seen) == 1
+    assert started <= seen[0] <= datetime.now(UTC)
 
 
 def _wait_for_files(directory, count, process, timeout=90):

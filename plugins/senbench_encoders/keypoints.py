@@ -87,6 +87,7 @@ KEYPOINTS = EncoderSpec(
     description="3 convolutions to K maps, a spatial softmax to K keypoints (x, y), an MLP",
     traceable=True,
     batch_independent=True,
+    memory_formats=frozenset({"contiguous", "channels_last"}),  # reshape, not view
     min_frame_size=MIN_FRAME,
     search_space={"keypoints": Choice((8, 16, 32)), "hidden": Choice((64, 128, 256))},
 )

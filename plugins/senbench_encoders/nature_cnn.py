@@ -46,6 +46,7 @@ NATURE_CNN = EncoderSpec(
     description="Nature-DQN CNN (3 convolutions, 1 hidden layer) regressing the state",
     traceable=True,
     batch_independent=True,
+    memory_formats=frozenset({"contiguous", "channels_last"}),  # reshape, not view
     min_frame_size=MIN_FRAME,
     search_space={"hidden": Choice((128, 256, 512))},
 )

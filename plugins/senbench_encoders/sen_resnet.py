@@ -89,6 +89,7 @@ SEN_RESNET = EncoderSpec(
     description="SEN-DRL's encoder: 4 residual blocks of two 3x3 convolutions, 2 FC layers",
     traceable=True,
     batch_independent=True,
+    memory_formats=frozenset({"contiguous", "channels_last"}),  # reshape, not view
     min_frame_size=min_frame_size,
     search_space={"hidden": Choice((64, 128, 256, 512)), "batch_norm": Choice((True, False))},
 )

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from senbench.encoders.model import StateEncoder, build_model, observation_bounds
 from senbench.encoders.request import EncoderRequest
-from senbench.encoders.training import CHECKSUM, sha256_of, train
+from senbench.encoders.training import CHECKSUM, env_of, sha256_of, train
 from senbench.errors import EncoderCacheError
 from senbench.plugin.registry import Registries
 
@@ -44,7 +44,7 @@ def load(root: Path, request: EncoderRequest, regs: Registries) -> StateEncoder 
     if not path.exists():
         return None
     check_checksum(path)
-    env_spec = regs.envs.get(request.env)
+    env_spec = env_of(request, regs)  # the bounds of the env the cells make
     try:
         saved = torch.load(path, weights_only=True, map_location="cpu")
         mean, std, weights = saved["mean"], saved["std"], saved["model"]

@@ -171,7 +171,7 @@ def _train(request: EncoderRequest, regs: Registries, out: Path,
     model.load_state_dict(best_state)
     train_wall = time.perf_counter() - started
 
-    env_spec = regs.envs.get(request.env)
+    env_spec = env_of(request, regs)
     low, high = observation_bounds(env_spec)
     encoder = StateEncoder(model, mean, std, low, high,
                            traceable=regs.encoders.get(request.arch).traceable)

@@ -110,10 +110,13 @@ def load_plugins() -> None:
 
 def _register(plugin: object, name: str) -> None:
     """Register ``plugin`` with pluggy, refusing a ``@hookimpl`` whose name is no senbench
-    hook (pluggy would keep it, never called: a misspelled hook registers nothing)."""
+    hook (pluggy would keep it, never called: a misspelled hook registers nothing) unless
+    it is marked ``optionalhook=True`` (one for a later senbench's hook, say)."""
     pm.register(plugin, name=name)
     unknown = sorted(caller.name for caller in pm.get_hookcallers(plugin) or []
-                     if not caller.has_spec())
+                     if not caller.has_spec()
+                     and any(impl.plugin is plugin and not impl.optionalhook
+                             for impl in caller.get_hookimpls()))
     if unknown:
         pm.unregister(plugin)
         hooks = sorted(n for n in dir(hookspecs) if n.startswith("register_"))

@@ -209,9 +209,6 @@ class AgentSpec:
     precisions: frozenset[str] = frozenset({"fp32"})
     """The ``precision`` values the agent honours (``AgentContext.precision``): a suite
     asking for another is a validation error at its ``precision``."""
-    memory_formats: frozenset[str] = frozenset({"contiguous"})
-    """The ``memory_format`` values the agent honours (``AgentContext.memory_format``): a
-    suite asking for another is a validation error at its ``memory_format``."""
     seed_batching: bool = False
     """The agent may run beside other seeds in one process (a suite's ``seed_batch``; see
     :mod:`senbench.run.batch`): each seed in a thread of its own, their frames encoded in
@@ -222,6 +219,11 @@ class AgentSpec:
     """The agent reads the observation space's bounds (tile coding scales each dimension
     by them), so on ``state`` and ``encoded`` it needs every bound finite: an env whose
     state observation has an infinite one is a validation error. False: any bounds."""
+    memory_formats: frozenset[str] = frozenset({"contiguous"})
+    """The ``memory_format`` values the agent honours (``AgentContext.memory_format``) on
+    frames: a suite asking for another on a ``pixels`` or ``encoded`` observation is a
+    validation error at its ``memory_format`` (a ``state`` cell has no convolutions, and
+    the key leaves it as it is)."""
 
     def __post_init__(self) -> None:
         _check_search_space("agent", self.name, self.config, self.search_space)
@@ -289,6 +291,10 @@ class EncoderSpec:
     resolved config (an instance of ``config``) returning one, when it depends on the
     config (a stride, say). A suite with smaller frames is a validation error at its
     ``pixels``. None: any size a suite allows (``build`` may still refuse one)."""
+    memory_formats: frozenset[str] = frozenset({"contiguous"})
+    """The ``memory_format`` values the module runs in: ``channels_last`` only if its
+    forward takes NHWC tensors (``reshape``/``flatten``, not ``view``, after a
+    convolution). An encoded cell asking for another is a validation error."""
 
     def __post_init__(self) -> None:
         _check_search_space("encoder", self.name, self.config, self.search_space)
@@ -372,7 +378,11 @@ class Recorder(Protocol):
         agent's envs (a vectorised step of n envs adds n). Evaluations run here: at 0, at the
         first report at or after each multiple of ``eval.every`` (recorded at the frame
         reported) and at the budget; call it after every (vectorised) step so they land on
-        time. Returns False once the budget is spent: the agent stops."""
+        time. Returns False once the budget is spent: the agent stops.
+
+        The first report is ``step(0)``, before the first env step; the count never goes
+        back; nothing is reported after False. A cell whose agent breaks one of these
+        fails, naming the rule."""
 
     def episode(self, steps: int, episode_return: float, length: int) -> None:
         """Report a finished training episode at ``steps`` total frames."""

@@ -205,16 +205,14 @@ def record_lost_cell(cell: Cell, directory: Path, info: RunInfo, how: str,
                      since: datetime | None = None) -> CellOutcome:
     """A cell that ended without telling its outcome (its process died, or writing its
     result failed): record it as failed, with no curve — unless its file holds a finished
-    result. One written since ``since`` (when its process started) is the cell's own, the
-    process having died between writing it and telling (its outcome is read from it); an
-    older one (an earlier run's, under --force) is kept, and this attempt reported failed."""
+    result started since ``since`` (when its process started): the process died between
+    writing it and telling, and its outcome is read from it. An older file (an earlier
+    run's, under --force) is replaced, as a rerun that raises replaces it."""
     row = cell_row(cell_path(directory, cell.id), ["status", "started_at", "cell_wall_s"])
-    if row is not None and row["status"] == "ok":
-        if since is not None and row["started_at"] >= since:
-            return CellOutcome(cell.id, cell.label, "ok", None,
-                               last_eval_return(cell_path(directory, cell.id)),
-                               row["cell_wall_s"])
-        return lost_cell(cell, info, how + "; its earlier finished result is kept")[1]
+    if (row is not None and row["status"] == "ok" and since is not None
+            and row["started_at"] >= since):
+        return CellOutcome(cell.id, cell.label, "ok", None,
+                           last_eval_return(cell_path(directory, cell.id)), row["cell_wall_s"])
     rows, outcome = lost_cell(cell, info, how)
     write_cell(directory, cell.id, rows)
     return outcome

@@ -25,6 +25,7 @@ from senbench.suite.resolve import (
     check_capabilities,
     check_tune,
     fits,
+    memory_format_of,
     resolve_config,
     resolve_encoder,
     show,
@@ -215,13 +216,8 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
                 f"{' or '.join(sorted(agent.precisions))}, not {precision}; set precision: "
                 f"fp32 for method '{method_name}'")
         return []
-    memory_format = method.memory_format or model.memory_format
-    if memory_format not in agent.memory_formats:
-        problem(("methods", method_name, "memory_format") if method.memory_format else
-                ("memory_format",), f"agent '{agent.name}' offers memory_format "
-                f"{' or '.join(sorted(agent.memory_formats))}, not {memory_format} (its "
-                f"spec's memory_formats); set memory_format: contiguous for method "
-                f"'{method_name}'")
+    memory_format = memory_format_of(model, method_name, method, agent, regs, problem)
+    if memory_format is None:
         return []
     if precision == "bf16" and not bf16_native():
         problem(precision_at, "this machine's CPU has no bf16 instructions (torch "

@@ -12,7 +12,7 @@ from typing import Any
 
 import pydantic
 
-from senbench.errors import unknown_name_message
+from senbench.errors import UnknownNameError, unknown_name_message
 from senbench.plugin.registry import Registries
 from senbench.plugin.specs import narrow
 from senbench.suite.source import Loc
@@ -294,3 +294,29 @@ def check_tune(model: Any, regs: Registries, problem) -> None:
                 narrow(searched[name], narrower.low, narrower.high, narrower.values)
             except ValueError as exc:
                 problem(("tune", method_name, name), str(exc))
+
+
+def memory_format_of(model: Any, method_name: str, method: Any, agent: Any,
+                   regs: Registries, problem) -> str | None:
+    """The method's layout: contiguous on the state, whose networks have no convolutions
+    (so the key moves no state cell's id); else the method's or the suite's, if its agent
+    and its encoder offer it (None, with the problem, if not)."""
+    asked = method.memory_format or model.memory_format
+    if method.observation == "state" or asked == "contiguous":
+        return "contiguous"
+    at: Loc = (("methods", method_name, "memory_format") if method.memory_format else
+               ("memory_format",))
+    offers = [(f"agent '{agent.name}'", agent.memory_formats)]
+    if method.observation == "encoded" and method.encoder is not None:
+        try:
+            arch = regs.encoders.get(method.encoder.arch)
+            offers.append((f"encoder '{arch.name}'", arch.memory_formats))
+        except UnknownNameError:
+            pass  # reported where the encoder is checked
+    for who, formats in offers:
+        if asked not in formats:
+            problem(at, f"{who} offers memory_format {' or '.join(sorted(formats))}, not "
+                    f"{asked} (its spec's memory_formats); set memory_format: contiguous "
+                    f"for method '{method_name}'")
+            return None
+    return asked
