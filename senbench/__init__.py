@@ -11,6 +11,7 @@ from senbench.observe.observations import PhysicalStateInfo, make_env
 from senbench.observe.pixels import FrameStack, PixelSpec, rendered_frames
 from senbench.plugin.hookspecs import hookimpl
 from senbench.plugin.specs import (
+    MEMORY_FORMATS,
     Agent,
     AgentContext,
     AgentDefaults,
@@ -36,6 +37,7 @@ __all__ = [
     "Choice",
     "Float",
     "Int",
+    "MEMORY_FORMATS",
     "AgentSpec",
     "EncoderSpec",
     "EnvSpec",

@@ -26,11 +26,11 @@ from typing import Annotated
 from pydantic import Field
 from pydantic.dataclasses import dataclass
 
-from senbench import AgentSpec, Choice
+from senbench import MEMORY_FORMATS, AgentSpec, Choice
 from senbench_agents.augment import min_frame_size, scaled_pad
 from senbench_agents.dqn import DQN_SPACE, DQNAgent, DQNConfig
 from senbench_agents.ranges import NonNegativeInt, PositiveInt, Probability
-from senbench_agents.sb3 import MEMORY_FORMATS, PRECISIONS
+from senbench_agents.sb3 import PRECISIONS
 
 
 @dataclass

@@ -30,11 +30,18 @@ import numpy as np
 from pydantic import Field
 from pydantic.dataclasses import dataclass
 
-from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Recorder
+from senbench import (
+    MEMORY_FORMATS,
+    AgentContext,
+    AgentDefaults,
+    AgentSpec,
+    Choice,
+    Float,
+    Recorder,
+)
 from senbench_agents.augment import min_frame_size as shifted_min_frame_size
 from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, Probability
 from senbench_agents.sb3 import (
-    MEMORY_FORMATS,
     NATURE_CNN_MIN_FRAME,
     PRECISIONS,
     is_frame_stack,

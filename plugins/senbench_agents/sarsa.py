@@ -17,7 +17,16 @@ from __future__ import annotations
 import numpy as np
 from pydantic.dataclasses import dataclass
 
-from senbench import AgentContext, AgentDefaults, AgentSpec, Choice, Float, Int, Recorder
+from senbench import (
+    MEMORY_FORMATS,
+    AgentContext,
+    AgentDefaults,
+    AgentSpec,
+    Choice,
+    Float,
+    Int,
+    Recorder,
+)
 from senbench_agents.ranges import PositiveFloat, PositiveInt, Probability
 
 
@@ -128,7 +137,7 @@ SARSA_SPEC = AgentSpec(
     actions=frozenset({"discrete"}),
     observations=frozenset({"state", "encoded"}),
     # no network of its own: a layout is its state encoder's, which the runner lays out
-    memory_formats=frozenset({"contiguous", "channels_last"}),
+    memory_formats=MEMORY_FORMATS,
     defaults={
         "mountaincar": AgentDefaults(
             values={"tilings": 16, "tiles": 6, "alpha": 1.0, "trace_decay": 0.9},

@@ -52,8 +52,6 @@ def learn_with_recorder(model, budget: int, recorder: Recorder) -> None:
 
 PRECISIONS = frozenset({"fp32", "bf16"})
 """What every SB3 agent offers: its updates in fp32, or in bf16 under torch.autocast."""
-MEMORY_FORMATS = frozenset({"contiguous", "channels_last"})
-"""What every SB3 agent offers: its networks' tensors laid out NCHW, or NHWC."""
 
 
 def lay_out(model: Any, memory_format: str) -> None:

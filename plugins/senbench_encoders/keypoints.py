@@ -18,7 +18,7 @@ from typing import Annotated
 from pydantic import Field
 from pydantic.dataclasses import dataclass
 
-from senbench import Choice, EncoderSpec
+from senbench import MEMORY_FORMATS, Choice, EncoderSpec
 
 PositiveInt = Annotated[int, Field(ge=1)]
 
@@ -87,7 +87,7 @@ KEYPOINTS = EncoderSpec(
     description="3 convolutions to K maps, a spatial softmax to K keypoints (x, y), an MLP",
     traceable=True,
     batch_independent=True,
-    memory_formats=frozenset({"contiguous", "channels_last"}),  # reshape, not view
+    memory_formats=MEMORY_FORMATS,  # reshape, not view, after its convolutions
     min_frame_size=MIN_FRAME,
     search_space={"keypoints": Choice((8, 16, 32)), "hidden": Choice((64, 128, 256))},
 )

@@ -8,7 +8,7 @@ from typing import Annotated
 from pydantic import Field
 from pydantic.dataclasses import dataclass
 
-from senbench import Choice, EncoderSpec
+from senbench import MEMORY_FORMATS, Choice, EncoderSpec
 
 MIN_FRAME = 36
 """Its convolutions (8x8 stride 4, 4x4 stride 2, 3x3 stride 1) leave nothing of 35x35."""
@@ -46,7 +46,7 @@ NATURE_CNN = EncoderSpec(
     description="Nature-DQN CNN (3 convolutions, 1 hidden layer) regressing the state",
     traceable=True,
     batch_independent=True,
-    memory_formats=frozenset({"contiguous", "channels_last"}),  # reshape, not view
+    memory_formats=MEMORY_FORMATS,  # reshape, not view, after its convolutions
     min_frame_size=MIN_FRAME,
     search_space={"hidden": Choice((128, 256, 512))},
 )

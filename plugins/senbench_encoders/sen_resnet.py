@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import Field
 from pydantic.dataclasses import dataclass
 
-from senbench import Choice, EncoderSpec
+from senbench import MEMORY_FORMATS, Choice, EncoderSpec
 
 PositiveInt = Annotated[int, Field(ge=1)]
 
@@ -89,7 +89,7 @@ SEN_RESNET = EncoderSpec(
     description="SEN-DRL's encoder: 4 residual blocks of two 3x3 convolutions, 2 FC layers",
     traceable=True,
     batch_independent=True,
-    memory_formats=frozenset({"contiguous", "channels_last"}),  # reshape, not view
+    memory_formats=MEMORY_FORMATS,  # reshape, not view, after its convolutions
     min_frame_size=min_frame_size,
     search_space={"hidden": Choice((64, 128, 256, 512)), "batch_norm": Choice((True, False))},
 )

@@ -18,6 +18,9 @@ ActionKind = Literal["discrete", "continuous"]
 OBSERVATION_KINDS = ("state", "pixels", "encoded")
 """The observations senbench builds (senbench.observe.observations), which
 ``AgentSpec.observations`` chooses from."""
+MEMORY_FORMATS = frozenset({"contiguous", "channels_last"})
+"""The tensor layouts a suite's ``memory_format`` chooses from: what an agent or encoder
+that runs in both declares as its ``memory_formats``."""
 ENV_CAPABILITIES = ("observe", "set_state", "render")
 """The optional :class:`EnvSpec` functions a sampler may need (``SamplerSpec.needs``): an
 env can do what it has the function for."""
@@ -231,7 +234,7 @@ class AgentSpec:
         for field_name, known in (("actions", get_args(ActionKind)),
                                   ("observations", OBSERVATION_KINDS),
                                   ("precisions", ("fp32", "bf16")),
-                                  ("memory_formats", ("contiguous", "channels_last"))):
+                                  ("memory_formats", sorted(MEMORY_FORMATS))):
             unknown = sorted(set(getattr(self, field_name)) - set(known))
             if unknown:
                 raise ValueError(f"agent '{self.name}': {field_name} names {unknown}; it "
