@@ -170,3 +170,16 @@ def test_each_control_suite_runs_every_learner_end_to_end_in_a_quick_twin(path, 
         for env, ref in envs.items():
             row = table[(table["method"] == method) & (table["env"] == env)]
             assert row["reference"].item() == ref["value"]
+
+
+def test_sarsas_state_control_is_held_to_the_solved_return_gymnasium_registers():
+    """Tile-coded SARSA has no published agent number (the zoo has no SARSA; Sutton & Barto
+    publish plots): its reference is MountainCar-v0's own reward_threshold, read from
+    gymnasium, not copied by hand."""
+    import gymnasium
+
+    refs = yaml.safe_load((ROOT / "suites" / "controls-state.yaml").read_text())["references"]
+    solved = gymnasium.spec("MountainCar-v0").reward_threshold
+    for method in ("sarsa-state", "sarsa-book"):
+        assert refs[method]["mountaincar"]["value"] == solved == -110.0
+        assert "reward_threshold" in refs[method]["mountaincar"]["source"]
