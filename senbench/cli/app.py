@@ -243,7 +243,7 @@ def tune(
                                          "seed at each evaluation early).")] = 0,
     export: Annotated[Path | None, typer.Option(
         help="Write each method's best trial as a suite 'methods:' block to this .yaml "
-        "file.")] = None,
+        "file (the blocks of other methods an earlier export left in it are kept).")] = None,
     time_limit: Annotated[str | None, typer.Option(
         help="Start a trial only if it is expected to end within this time of the "
              "command's start (2h30m, 150m, 90s), at the mean of the study's finished "
@@ -257,7 +257,7 @@ def tune(
     from senbench.plugin.manager import registries
     from senbench.run.processes import usable_cores
     from senbench.run.schedule import parse_duration
-    from senbench.tune.export import export_best
+    from senbench.tune.export import export_best, read_export
     from senbench.tune.study import (
         check_objective,
         fits,
@@ -274,6 +274,7 @@ def tune(
                 else time.monotonic() + parse_duration(time_limit))
     if export is not None:
         check_out_file(export, (".yaml", ".yml"), "--export")
+        read_export(export)  # a file it would not keep is refused before any trial
     suite = load_suite_file(suite_file)
     regs = registries()
     targets = tune_targets(suite, method, env, regs, named_study=study is not None,

@@ -1,10 +1,14 @@
-"""``senbench tune --export``: the best trial of each study as a suite ``methods:`` block."""
+"""``senbench tune --export``: the best trial of each study as a suite ``methods:`` block,
+each under a comment naming its study; a file that already holds other methods' blocks
+keeps them."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
+from senbench.errors import OutputError
 from senbench.results.outputs import written_whole
 from senbench.tune.study import ENCODER, Target, default_params, moved_defaults
 
@@ -30,27 +34,80 @@ def best_block(study: Any, tgt: Target) -> dict[str, Any]:
 
 def export_best(studies: list[tuple[Any, Target]], path: Path, *, objective: str,
                 seeds: int) -> None:
-    """Write each study's :func:`best_block` to ``path`` (a ``--export`` .yaml file) whole,
-    headed by a comment naming each study, its best trial and its objective value."""
+    """Write each study's :func:`best_block` to ``path`` (a ``--export`` .yaml file), each
+    under a comment naming its study, its best trial and its objective value. The blocks of
+    other methods that ``path`` already holds are kept, in their place: a comparison tuned a
+    ``--method`` at a time, over several runs, ends in one file; a method tuned again
+    replaces its own block. The file is written whole."""
     import yaml
 
-    blocks: dict[str, Any] = {}
-    head = []
+    segments = read_export(path)
     for study, tgt in studies:
-        blocks.update(best_block(study, tgt))
         best = study.best_trial
         own = (" (the defaults: the method's own settings, unchanged)"
                if own_settings_won(study, tgt) else "")
-        head.append(f"# senbench tune: study '{study.study_name}', trial {best.number}{own}, "
-                    f"{objective} {best.value:,.2f} over {seeds} seeds\n")
+        head = (f"# senbench tune: study '{study.study_name}', trial {best.number}{own}, "
+                f"{objective} {best.value:,.2f} over {seeds} seeds\n")
         tied = [t.number for t in study.trials if t.number != best.number
                 and t.state.name == "COMPLETE" and t.value == best.value]
         if tied:  # which of them Optuna returns says nothing of the settings
-            head.append(f"#   tied with trial{'s' if len(tied) > 1 else ''} "
-                        f"{', '.join(map(str, tied))}: the study did not rank them\n")
-    text = yaml.safe_dump(blocks, sort_keys=False)
+            head += (f"#   tied with trial{'s' if len(tied) > 1 else ''} "
+                     f"{', '.join(map(str, tied))}: the study did not rank them\n")
+        segments[tgt.method] = head + yaml.safe_dump(best_block(study, tgt), sort_keys=False)
     with written_whole(path, "--export") as tmp:
-        tmp.write_text("".join(head) + text)
+        tmp.write_text("".join(segments.values()))
+
+
+def read_export(path: Path) -> dict[str, str]:
+    """The text of each method's block in an earlier export at ``path`` (none if there is
+    no file), with the comments that name its study: keyed by method, in the file's order.
+    A comment naming a study goes with the block of the method the study is named after
+    (``<method>-<env>-<objective>``; exports written before 2026-12-04 put them all at the
+    top); any other line goes with the block it belongs to or precedes. A file that is not
+    such an export is refused, before any trial runs."""
+    import yaml
+
+    if not path.exists():
+        return {}
+    try:
+        text = path.read_text()
+        blocks = yaml.safe_load(text)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        why = " ".join(str(exc).split())
+        raise OutputError(f"--export {path}: cannot read it as an earlier export ({why}); "
+                          "name a new file or an earlier export of senbench tune") from None
+    if blocks is None:
+        return {}
+    if not isinstance(blocks, dict) or not all(isinstance(b, dict) for b in blocks.values()):
+        raise OutputError(f"--export {path}: holds something other than suite methods: "
+                          "blocks, and exporting would replace it; name a new file or an "
+                          "earlier export of senbench tune")
+    methods = [str(m) for m in blocks]
+    parts: dict[str, list[str]] = {m: [] for m in methods}
+    studies: dict[str, list[str]] = {m: [] for m in methods}
+    pending: list[str] = []
+    current, keys = None, iter(methods)
+    owner = None  # the method of the study comment being read (its "tied" line follows it)
+    for line in text.splitlines(keepends=True):
+        named = re.match(r"# senbench tune: study '([^']*)'", line)
+        if named:
+            owner = max((m for m in methods if named.group(1).startswith(f"{m}-")),
+                        key=len, default=None)
+        if named and owner is not None or line.startswith("#   tied") and owner is not None:
+            studies[owner].append(line)
+            continue
+        owner = None
+        if re.match(r"[^\s#]", line):  # a top-level key: the next block begins
+            current = next(keys)
+            parts[current] += pending + [line]
+            pending = []
+        elif current is None or line.startswith("#"):
+            pending.append(line)
+        else:
+            parts[current].append(line)
+    if pending:
+        parts[methods[-1]] += pending
+    return {m: "".join(studies[m] + parts[m]) for m in methods}
 
 
 def own_settings_won(study: Any, tgt: Target) -> bool:
