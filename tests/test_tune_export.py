@@ -88,7 +88,9 @@ def test_an_export_keeps_other_methods_blocks_and_replaces_its_own(write_suite, 
     assert list(yaml.safe_load(fresh.read_text())) == ["sarsa-small"]
 
 
-@pytest.mark.parametrize("text", ["name: a suite\nenvs: {}\n", "- a\n- list\n", "a: [1\n"])
+@pytest.mark.parametrize("text", ["name: a suite\nenvs: {}\n", "- a\n- list\n", "a: [1\n",
+                                  "{a: {agent: sarsa}, b: {agent: sarsa}}\n",
+                                  "---\na: {agent: sarsa}\n"])
 def test_a_file_that_is_not_an_export_is_refused_not_replaced(tmp_path, text):
     path = tmp_path / "mine.yaml"
     path.write_text(text)

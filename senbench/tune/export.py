@@ -93,12 +93,14 @@ def read_export(path: Path) -> dict[str, str]:
         if named:
             owner = max((m for m in methods if named.group(1).startswith(f"{m}-")),
                         key=len, default=None)
-        if named and owner is not None or line.startswith("#   tied") and owner is not None:
+        if owner is not None and (named or line.startswith("#   tied")):
             studies[owner].append(line)
             continue
         owner = None
         if re.match(r"[^\s#]", line):  # a top-level key: the next block begins
-            current = next(keys)
+            current = next(keys, None)
+            if current is None:
+                raise _not_laid_out(path, line.strip())
             parts[current] += pending + [line]
             pending = []
         elif current is None or line.startswith("#"):
@@ -107,7 +109,22 @@ def read_export(path: Path) -> dict[str, str]:
             parts[current].append(line)
     if pending:
         parts[methods[-1]] += pending
-    return {m: "".join(studies[m] + parts[m]) for m in methods}
+    segments = {m: "".join(studies[m] + parts[m]) for m in methods}
+    for method, segment in segments.items():  # each a block of its own, or kept whole
+        try:
+            alone = yaml.safe_load(segment)
+        except yaml.YAMLError:
+            alone = None
+        if alone != {method: blocks[method]}:
+            raise _not_laid_out(path, method)
+    return segments
+
+
+def _not_laid_out(path: Path, where: str) -> OutputError:
+    return OutputError(f"--export {path}: '{where}' is not laid out as senbench tune writes "
+                       "its blocks (one top-level key a block, no '---'), so the blocks "
+                       "cannot be kept beside a new one; name a new file or an earlier "
+                       "export of senbench tune")
 
 
 def own_settings_won(study: Any, tgt: Target) -> bool:
