@@ -19,6 +19,7 @@ envs:
 methods:
   sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}
   sarsa-small: {agent: sarsa, hyperparams: {tilings: 4}}
+  sarsa-new: {agent: sarsa}
 seeds: 1
 budget: 2000
 eval: {every: 1000, episodes: 1}
@@ -82,6 +83,12 @@ def test_an_export_keeps_other_methods_blocks_and_replaces_its_own(write_suite, 
     lines = text.splitlines()
     assert lines[lines.index("sarsa-small:") - 1].startswith(
         "# senbench tune: study 'sarsa-small-mountaincar-auc'")
+    path.write_text(LEGACY.rstrip("\n"))  # no newline at its end
+    export_best([studied(write_suite, "sarsa-new", -99.0, 0.3)], path, objective="auc",
+                seeds=3)
+    blocks = yaml.safe_load(path.read_text())
+    assert list(blocks) == ["sarsa-state", "sarsa-small", "sarsa-new"]
+    assert blocks["sarsa-small"] == yaml.safe_load(LEGACY)["sarsa-small"]
     fresh = tmp_path / "fresh.yaml"
     export_best([studied(write_suite, "sarsa-small", -140.0, 0.4)], fresh, objective="auc",
                 seeds=3)

@@ -55,7 +55,8 @@ def export_best(studies: list[tuple[Any, Target]], path: Path, *, objective: str
                      f"{', '.join(map(str, tied))}: the study did not rank them\n")
         segments[tgt.method] = head + yaml.safe_dump(best_block(study, tgt), sort_keys=False)
     with written_whole(path, "--export") as tmp:
-        tmp.write_text("".join(segments.values()))
+        tmp.write_text("".join(s if s.endswith("\n") else s + "\n"
+                               for s in segments.values()))
 
 
 def read_export(path: Path) -> dict[str, str]:
