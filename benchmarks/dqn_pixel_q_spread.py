@@ -20,7 +20,7 @@ a cell (its own settings and seed) and, at frame 0 and every ``--every`` frames 
 - the training episodes that ended since the last probe.
 
     .venv/bin/python benchmarks/dqn_pixel_q_spread.py controls-pixels dqn-pixels mountaincar \
-        --frames 40000 --start 20000 --every 2000   (8 min beside three other runs, 2 cores)
+        --frames 40000 --start 20000 --every 2000   (under 10 min beside 3 other runs, 2 cores)
 """
 
 from __future__ import annotations
