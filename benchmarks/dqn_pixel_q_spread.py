@@ -56,7 +56,8 @@ def fixed_frames(env, seed: int) -> torch.Tensor:
 def probe(model, frames: torch.Tensor) -> str:
     with torch.inference_mode():
         q = model.policy.q_net(frames).numpy()
-        features = model.policy.q_net.features_extractor(frames.float() / 255).numpy()
+        net = model.policy.q_net  # SB3's own preprocessing (uint8 / 255), then the CNN
+        features = net.extract_features(frames, net.features_extractor).numpy()
     counts = np.bincount(q.argmax(axis=1), minlength=q.shape[1])
     ranked = np.sort(q, axis=1)
     value = q.mean(axis=1, keepdims=True)
