@@ -377,11 +377,11 @@ class Recorder(Protocol):
     """The one protocol every agent reports through."""
 
     def step(self, steps: int) -> bool:
-        """Report the total environment steps (frames) taken so far, over all of the
-        agent's envs (a vectorised step of n envs adds n). Evaluations run here: at 0, at the
-        first report at or after each multiple of ``eval.every`` (recorded at the frame
-        reported) and at the budget; call it after every (vectorised) step so they land on
-        time. Returns False once the budget is spent: the agent stops.
+        """Report the steps of ``ctx.make_env()``'s envs taken so far, over all of them (a
+        vectorised step of n envs adds n): frames, or decisions of k frames under an action
+        repeat of k. Evaluations run here: at 0, at the first report at or after each
+        multiple of ``eval.every`` frames and at the budget; call it after every (vectorised)
+        step so they land on time. Returns False once the budget is spent: the agent stops.
 
         The first report is ``step(0)``, before the first env step; the count never goes
         back; nothing is reported after False. A cell whose agent breaks one of these
@@ -393,7 +393,7 @@ class Recorder(Protocol):
 
 class Agent(Protocol):
     def learn(self, budget: int, recorder: Recorder) -> None:
-        """Learn for ``budget`` environment steps, calling ``recorder`` as it goes."""
+        """Learn for ``budget`` steps of ``ctx.make_env()``'s env, reporting to ``recorder``."""
 
     def act(self, observation: np.ndarray) -> Any:
         """The greedy / deterministic action for one observation (not a batch), used by

@@ -45,8 +45,8 @@ class Evaluator:
         self.discrete = isinstance(env.action_space, gymnasium.spaces.Discrete)
 
     def __call__(self, act: Callable[[np.ndarray], Any]) -> dict[str, Any]:
-        """Mean return, its std over episodes, mean episode length, and the actions' stats
-        (the columns of an evaluation row)."""
+        """Mean return, its std over episodes, mean episode length in frames, and the
+        actions' stats, one per decision (the columns of an evaluation row)."""
         returns, lengths, actions = [], [], []
         space = self.env.action_space
         for episode, seed in enumerate(self.seeds, 1):
@@ -64,11 +64,11 @@ class Evaluator:
                 if not self.discrete:
                     _check(action, "the agent's action", length, episode, ACTION_CAUSE)
                 actions.append(action)
-                obs, reward, terminated, truncated, _ = self.env.step(action)
+                obs, reward, terminated, truncated, info = self.env.step(action)
                 total += float(reward)
                 if not math.isfinite(total):
                     _check(reward, "the reward", length, episode, REWARD_CAUSE)
-                length += 1
+                length += info.get("frames", 1)  # an action held k frames takes k
                 done = terminated or truncated
             returns.append(total)
             lengths.append(length)
@@ -102,6 +102,24 @@ def _check(value: Any, what: str, step: int, episode: int, cause: str) -> None:
     bad = "nan" if np.isnan(array).any() else "infinite"
     raise NonFiniteError(f"{what} is {bad} at step {step} of evaluation episode {episode}: "
                          f"{cause}")
+
+
+class DecisionRecorder:
+    """The recorder an agent reports through when each of its actions is held for
+    ``repeat`` frames (an env's ``action_repeat``): it counts decisions, the cell counts
+    frames. A training episode's length is its decisions times ``repeat``, so an episode
+    that ended inside its last decision counts that decision whole (as the ALE's frame
+    counts do); evaluation lengths are exact."""
+
+    def __init__(self, frames: CellRecorder, repeat: int):
+        self.frames = frames
+        self.repeat = repeat
+
+    def step(self, steps: int) -> bool:
+        return self.frames.step(steps * self.repeat)
+
+    def episode(self, steps: int, episode_return: float, length: int) -> None:
+        self.frames.episode(steps * self.repeat, episode_return, length * self.repeat)
 
 
 class CellRecorder:

@@ -26,7 +26,7 @@ from senbench.observe.observations import make_env
 from senbench.plugin.manager import registries
 from senbench.plugin.specs import AgentContext
 from senbench.results.store import cell_path, cell_row, last_eval_return, write_cell
-from senbench.run.evaluation import CellRecorder, Evaluator
+from senbench.run.evaluation import CellRecorder, DecisionRecorder, Evaluator
 from senbench.run.provenance import cpu_description, git_commit
 from senbench.suite.cell import Cell
 
@@ -89,7 +89,7 @@ def agent_context(cell: Cell, encoder: Any = None) -> AgentContext:
 
     def make() -> Any:
         return make_env(env_spec, cell.observation, cell.max_episode_steps, cell.env_options,
-                        cell.pixels, encoder)
+                        cell.pixels, encoder, cell.action_repeat)
 
     return AgentContext(regs.agents.get(cell.agent).config(**cell.hyperparams), env_spec,
                         make, cell.seed, cell.threads, cell.precision, cell.memory_format)
@@ -127,7 +127,10 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
         report = None if progress is None else (lambda *a: progress(cell.id, *a))
         recorder = CellRecorder(cell.budget, cell.eval_every,
                                 lambda: evaluator(agent.act), report, stop_at)
-        agent.learn(cell.budget, recorder)
+        # with an action repeat of k the agent counts its decisions, k frames each
+        agent.learn(cell.budget // cell.action_repeat,
+                    recorder if cell.action_repeat == 1
+                    else DecisionRecorder(recorder, cell.action_repeat))
         wanted = min(cell.budget, stop_at or cell.budget)
         if recorder.steps < wanted:
             raise RuntimeError(f"agent '{cell.agent}' stopped after {recorder.steps} of "

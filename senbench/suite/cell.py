@@ -51,6 +51,7 @@ class Cell:
     """Frames between evaluations."""
     eval_episodes: int
     max_episode_steps: int
+    """Frames per episode at most."""
     threads: int
     """torch threads: float sums, and so curves, can differ with the count."""
     hyperparams: dict[str, Any] = field(default_factory=dict)
@@ -66,6 +67,9 @@ class Cell:
     """Frames per encoder pass: the seeds that run together in one process (and padding
     where fewer do). Float sums of a batched pass differ from a single frame's."""
     env_options: dict[str, Any] = field(default_factory=dict)
+    action_repeat: int = 1
+    """Frames each of the agent's actions is held for (the ALE's frame skip): the agent
+    decides, and sees frames, every ``action_repeat`` frames; budget and curve count frames."""
     encoder: dict[str, Any] | None = None
     """The resolved encoder entry (architecture and sampler configs completed with their
     defaults), for an ``encoded`` observation."""
@@ -93,7 +97,8 @@ class Cell:
         return {
             "curve_version": CURVE_VERSION,
             "env": {"name": self.env, "max_episode_steps": self.max_episode_steps,
-                    "options": self.env_options},
+                    "options": self.env_options,
+                    **({} if self.action_repeat == 1 else {"action_repeat": self.action_repeat})},
             "agent": self.agent, "observation": self.observation,
             "hyperparams": self.hyperparams, "encoder": self.encoder,
             "pixels": None if self.pixels is None else dataclasses.asdict(self.pixels),
@@ -164,7 +169,7 @@ class Cell:
             memory_format=config.get("memory_format", "contiguous"),
             max_episode_steps=config["env"]["max_episode_steps"], threads=config["threads"],
             hyperparams=config["hyperparams"], env_options=config["env"]["options"],
-            encoder=config.get("encoder"),
+            action_repeat=config["env"].get("action_repeat", 1), encoder=config.get("encoder"),
             pixels=PixelSpec(**config["pixels"]) if config.get("pixels") else None,
             threshold=float(config["env"]["threshold"]),
             variant_values=config.get("variant") or {}, hyperparams_source=hyperparams_source,

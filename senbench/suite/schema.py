@@ -31,13 +31,19 @@ Seed = Annotated[int, Field(strict=True, ge=0, lt=2**32)]
 
 class EnvEntry(StrictModel):
     max_episode_steps: Count | None = None
-    """Episode cap in steps; the env's own default when absent."""
+    """Episode cap in frames; the env's own default when absent."""
     threshold: Annotated[float, Field(strict=True, allow_inf_nan=False)] | None = None
     """Evaluation return that counts as solved; the env's default when absent."""
     budget: Count | None = None
     """Frames (environment steps) per cell on this env; the suite's budget when absent."""
     options: dict[str, Any] = {}
     """Keyword options of the env plugin, e.g. ``goal_velocity`` for mountaincar."""
+    action_repeat: Annotated[int, Field(strict=True, ge=1, le=16)] = 1
+    """Frames each action is held for, for every method on this env (the Arcade Learning
+    Environment's frame skip, 4 in the DQN papers): the agent decides and sees a frame every
+    ``action_repeat`` frames, rewards summed between. Budget, ``eval.every`` and the curves
+    count frames, so they must be multiples of it. Not for encoded observations (their
+    encoders learn from stacks of consecutive frames)."""
 
 
 class EncoderEntry(StrictModel):
