@@ -101,6 +101,20 @@ def test_a_repeat_that_does_not_fit_is_refused_with_its_line(write_suite, envs, 
         load(write_suite, envs, budget, every)
 
 
+def test_a_method_may_hold_its_actions_for_other_than_its_envs_repeat(write_suite):
+    text = (SUITE % ("action_repeat: 4", 1000, 500)).replace(
+        "seeds:", "  every-frame: {agent: sarsa, action_repeat: 1}\n"
+                  "  pairs: {agent: sarsa, action_repeat: 2}\nseeds:")
+    cells = {c.method: c for c in load_suite(write_suite(text), registries()).cells}
+    assert {m: c.action_repeat for m, c in cells.items()} == {
+        "sarsa-state": 4, "every-frame": 1, "pairs": 2}
+    assert cells["every-frame"].id == load(write_suite, "").cells[0].id
+    with pytest.raises(SuiteError, match=r"suite.yaml:7: methods.pairs.action_repeat: method "
+                                         r"'pairs' holds each action 2 frames on mountaincar, "
+                                         r"so its budget \(999 frames\)"):
+        load_suite(write_suite(text.replace("budget: 1000", "budget: 999")), registries())
+
+
 def test_an_encoded_method_takes_no_action_repeat(write_suite):
     from suites_for_tests import SEN_SARSA
 
@@ -108,6 +122,10 @@ def test_an_encoded_method_takes_no_action_repeat(write_suite):
     with pytest.raises(SuiteError, match=r"envs.mountaincar.action_repeat: method 'sen-sarsa' "
                                          r"observes through a state encoder"):
         load_suite(write_suite(text), registries())
+    own = text.replace("    agent: sarsa\n    observation: encoded",
+                       "    agent: sarsa\n    action_repeat: 1\n    observation: encoded")
+    cells = load_suite(write_suite(own), registries()).cells  # its own repeat of 1 is fine
+    assert {c.method: c.action_repeat for c in cells} == {"sarsa-state": 2, "sen-sarsa": 1}
 
 
 def test_a_cell_learns_for_its_budget_in_frames_with_k_frames_a_decision(write_suite,

@@ -21,6 +21,7 @@ from senbench.observe.pixels import PixelSpec
 from senbench.plugin.registry import Registries
 from senbench.suite.cell import Cell
 from senbench.suite.resolve import (
+    action_repeat_of,
     check_batchable,
     check_capabilities,
     check_tune,
@@ -202,11 +203,8 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
                 f"{'/'.join(sorted(agent.actions))} actions but env '{env_name}' has "
                 f"{env_spec.actions} actions; restrict the method with 'envs: [...]'")
         return []
-    if method.observation == "encoded" and env_entry.action_repeat > 1:
-        problem(("envs", env_name, "action_repeat"), f"method '{method_name}' observes "
-                "through a state encoder, which learns from stacks of consecutive frames, so "
-                f"it takes no action repeat; set action_repeat: 1 on {env_name}, or run "
-                f"'{method_name}' in another suite")
+    repeat = action_repeat_of(model, method_name, method, env_name, env_entry, problem)
+    if repeat is None:
         return []
     pixels = None  # only where frames are drawn
     if method.observation != "state":
@@ -244,7 +242,7 @@ def _method_cells(model: SuiteModel, method_name: str, method: MethodEntry, agen
         memory_format=memory_format,
         max_episode_steps=env_entry.max_episode_steps or env_spec.max_episode_steps,
         threads=model.threads, env_options=dict(env_entry.options), pixels=pixels,
-        action_repeat=env_entry.action_repeat,
+        action_repeat=repeat,
         threshold=float(env_spec.threshold if env_entry.threshold is None
                         else env_entry.threshold),
         hyperparams_source=defaults.source if defaults else "agent defaults",
@@ -308,11 +306,6 @@ def _check_envs(model: SuiteModel, regs: Registries, problem) -> dict[str, tuple
         if model.eval.every > budget:
             problem(("eval", "every"), f"evaluates every {model.eval.every} frames but the "
                     f"budget on {env_name} is {budget}; lower eval.every")
-        for what, frames in (("budget", budget), ("eval.every", model.eval.every)):
-            if frames % entry.action_repeat:
-                problem(("envs", env_name, "action_repeat"), f"{env_name} holds each action "
-                        f"{entry.action_repeat} frames, so its {what} ({frames} frames) must "
-                        f"be a multiple of {entry.action_repeat}; change one of the two")
     return envs
 
 

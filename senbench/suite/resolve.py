@@ -320,3 +320,26 @@ def memory_format_of(model: Any, method_name: str, method: Any, agent: Any,
                     f"for method '{method_name}'")
             return None
     return asked
+
+
+def action_repeat_of(model: Any, method_name: str, method: Any, env_name: str, env_entry: Any,
+                     problem) -> int | None:
+    """Frames each of the method's actions is held for on the env: its own, else the env's;
+    None, with the problem, for an encoded method (its encoder learns from consecutive
+    frames) or a budget or ``eval.every`` that is not a whole number of decisions."""
+    repeat = method.action_repeat or env_entry.action_repeat
+    at: Loc = (("methods", method_name, "action_repeat") if method.action_repeat
+               else ("envs", env_name, "action_repeat"))
+    if method.observation == "encoded" and repeat > 1:
+        problem(at, f"method '{method_name}' observes through a state encoder, which learns "
+                "from stacks of consecutive frames, so it takes no action repeat; set "
+                f"action_repeat: 1 for it on {env_name}")
+        return None
+    for what, frames in (("budget", env_entry.budget or model.budget),
+                         ("eval.every", model.eval.every)):
+        if frames % repeat:
+            problem(at, f"method '{method_name}' holds each action {repeat} frames on "
+                    f"{env_name}, so its {what} ({frames} frames) must be a multiple of "
+                    f"{repeat}; change one of the two")
+            return None
+    return repeat

@@ -39,11 +39,11 @@ class EnvEntry(StrictModel):
     options: dict[str, Any] = {}
     """Keyword options of the env plugin, e.g. ``goal_velocity`` for mountaincar."""
     action_repeat: Annotated[int, Field(strict=True, ge=1, le=16)] = 1
-    """Frames each action is held for, for every method on this env (the Arcade Learning
-    Environment's frame skip, 4 in the DQN papers): the agent decides and sees a frame every
-    ``action_repeat`` frames, rewards summed between. Budget, ``eval.every`` and the curves
-    count frames, so they must be multiples of it. Not for encoded observations (their
-    encoders learn from stacks of consecutive frames)."""
+    """Frames each action is held for, by every method on this env that sets none of its own
+    (the Arcade Learning Environment's frame skip, 4 in the DQN papers): the agent decides
+    and sees a frame every ``action_repeat`` frames, rewards summed between. Budget,
+    ``eval.every`` and the curves count frames, so they must be multiples of it. Not for
+    encoded observations (their encoders learn from stacks of consecutive frames)."""
 
 
 class EncoderEntry(StrictModel):
@@ -95,6 +95,9 @@ class MethodEntry(StrictModel):
     """The layout of the convolutions' tensors (default: the suite's)."""
     seed_batch: SeedBatch | None = None
     """Seeds run together in one process (default: the suite's)."""
+    action_repeat: Annotated[int, Field(strict=True, ge=1, le=16)] | None = None
+    """Frames each of this method's actions is held for (default: its env's
+    ``action_repeat``)."""
 
 
 class EvalEntry(StrictModel):
