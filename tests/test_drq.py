@@ -266,3 +266,34 @@ def test_drq_sac_defaults_are_the_sized_set_the_docs_state():
     config = DrQSACConfig()
     assert {key: getattr(config, key) for key in DRQ_SIZED} == DRQ_SIZED
     assert (config.k, config.m, config.pad) == (1, 1, None)
+
+
+def test_drq_sac_networks_end_in_drq_s_head_and_sac_s_keep_nature_cnn_s():
+    from gymnasium.spaces import Box
+    from stable_baselines3.common.torch_layers import NatureCNN
+
+    from senbench_agents.sb3 import features_extractor_class
+
+    drq = pixel_learner("drq-sac", learning_starts=10, batch_size=4)
+    for net in (drq.model.actor, drq.model.critic, drq.model.critic_target):
+        head = [type(layer).__name__ for layer in net.features_extractor.linear]
+        assert head == ["Linear", "LayerNorm", "Tanh"]
+    assert type(pixel_learner("sac", features_head="relu").model.actor.features_extractor) \
+        is NatureCNN
+    # the head's Linear is NatureCNN's own: from one seed they start with the same weights
+    space = Box(0, 255, (2, 36, 36), np.uint8)
+    torch.manual_seed(3)
+    nature = NatureCNN(space, features_dim=8)
+    torch.manual_seed(3)
+    ours = features_extractor_class("layernorm-tanh")(space, features_dim=8)
+    assert torch.equal(nature.linear[0].weight, ours.linear[0].weight)
+    # bounded and spread over frames, where a ReLU head may output 0 everywhere
+    features = ours(frames(16, 2).float())
+    assert features.abs().max() < 1 and features.std(0).min() > 0
+
+
+def test_a_features_head_drq_does_not_have_is_an_error_naming_the_heads(write_suite):
+    with pytest.raises(SuiteError, match="relu.*layernorm-tanh"):
+        load_suite(suite_with(write_suite, "drq-sac-pixels: {agent: drq-sac, observation: "
+                              "pixels, envs: [pendulum], hyperparams: {features_head: gelu}}"),
+                   registries())

@@ -24,7 +24,7 @@ from __future__ import annotations
 import re
 from dataclasses import field
 from functools import cache
-from typing import Annotated
+from typing import Annotated, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field
@@ -44,6 +44,7 @@ from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, P
 from senbench_agents.sb3 import (
     NATURE_CNN_MIN_FRAME,
     PRECISIONS,
+    features_extractor_class,
     is_frame_stack,
     lay_out,
     learn_with_recorder,
@@ -82,6 +83,11 @@ class SACConfig:
     """Hidden layers of the actor and of each critic (after the CNN on pixels)."""
     features_dim: PositiveInt = 512
     """Output of each network's CNN on pixels (SB3's NatureCNN)."""
+    features_head: Literal["relu", "layernorm-tanh"] = "relu"
+    """The last layer of each CNN on pixels: NatureCNN's Linear → ReLU, or DrQ's Linear →
+    LayerNorm → tanh."""
+
+    LATE_FIELDS: ClassVar[tuple[str, ...]] = ("features_head",)
 
     def __post_init__(self) -> None:
         if isinstance(self.ent_coef, str) and not _ENT_COEF.fullmatch(self.ent_coef):
@@ -93,10 +99,14 @@ class SACConfig:
 
 DRQ_SIZED = {"learning_rate": 1e-3, "buffer_size": 100_000, "learning_starts": 1000,
              "batch_size": 64, "tau": 0.01, "target_update_interval": 2, "train_freq": 4,
-             "ent_coef": "auto_0.1", "net_arch": [1024, 1024], "features_dim": 50}
+             "ent_coef": "auto_0.1", "net_arch": [1024, 1024], "features_dim": 50,
+             "features_head": "layernorm-tanh"}
 """DrQ's SAC (its paper and its code's config.yaml) sized to this machine: lr 1e-3, a
 100k buffer, 1,000 random frames first, critic targets at τ 0.01 every 2 updates, initial
-temperature 0.1, hidden layers of 1,024, 50 features. Departures, each for cost (frames/s
+temperature 0.1, hidden layers of 1,024, 50 features through DrQ's encoder head (Linear →
+LayerNorm → tanh; with NatureCNN's ReLU head the actor's 50 features all died within 2,000
+frames in one seed of two on the Pendulum bars, its action then the same on every frame:
+REPRODUCTION.md, "Positive controls"). Departures, each for cost (frames/s
 from benchmarks/drq_sizing.py): batch 64 (DrQ: 512 in the paper, 128 in its code, which
 runs at 0.52x the frames/s here); one update every 4 frames (DrQ updates once per agent
 step, which at its default action repeat of 4 is the same ratio; senbench has no action
@@ -121,6 +131,9 @@ class DrQSACConfig(SACConfig):
     net_arch: Annotated[list[PositiveInt], Field(min_length=1)] = field(
         default_factory=lambda: [1024, 1024])
     features_dim: PositiveInt = 50
+    features_head: Literal["relu", "layernorm-tanh"] = "layernorm-tanh"
+    LATE_FIELDS: ClassVar[tuple[str, ...]] = ()
+    """Always in the id: drq-sac's cells before the field had the ReLU head."""
     pad: Annotated[int, Field(ge=0)] | None = None
     """Pixels a frame may shift in each direction; None: DrQ's 4 at 84x84 scaled to the
     frame (3 at 64x64). At most half the frame."""
@@ -207,6 +220,8 @@ class SACAgent:
         pixels = is_frame_stack(venv.observation_space)
         policy_kwargs = {"net_arch": list(cfg.net_arch), "optimizer_kwargs": {"fused": True}}
         if pixels:
+            policy_kwargs["features_extractor_class"] = features_extractor_class(
+                cfg.features_head)
             policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}
         self.model = with_precision(periodic_target_sac(), ctx.precision)(
             "CnnPolicy" if pixels else "MlpPolicy", venv,

@@ -3,6 +3,7 @@ pipeline, and learning that reports through the recorder and stops at the budget
 
 from __future__ import annotations
 
+from functools import cache
 from typing import Any
 
 from senbench import AgentContext, Recorder
@@ -48,6 +49,44 @@ def learn_with_recorder(model, budget: int, recorder: Recorder) -> None:
         # total_timesteps = budget: SB3's schedules (DQN's exploration) span the budget; the
         # callback stops collection at the budget itself, mid-rollout if need be.
         model.learn(total_timesteps=budget, callback=Report())
+
+
+FEATURES_HEADS = ("relu", "layernorm-tanh")
+"""The last layer of an agent's CNN on pixels: SB3's NatureCNN as it is (Linear, ReLU), or
+DrQ's encoder head (Linear, LayerNorm, tanh: Kostrikov et al. 2020, its code's Encoder)."""
+
+
+def features_extractor_class(head: str) -> type:
+    """SB3's NatureCNN with ``head`` as its last layer, for a policy's
+    ``features_extractor_class``. A ReLU head can die whole: every feature 0 on every frame,
+    the network after it then blind (measured on drq-sac, REPRODUCTION.md); LayerNorm keeps
+    the features spread over frames and tanh bounds them."""
+    from stable_baselines3.common.torch_layers import NatureCNN
+
+    if head == "relu":
+        return NatureCNN
+    if head != "layernorm-tanh":
+        raise ValueError(f"features_head must be one of {', '.join(FEATURES_HEADS)}, "
+                         f"got {head!r}")
+    return _layer_norm_tanh_cnn()
+
+
+@cache
+def _layer_norm_tanh_cnn() -> type:
+    import torch as th
+    from stable_baselines3.common.torch_layers import NatureCNN
+
+    class LayerNormTanhCNN(NatureCNN):
+        """NatureCNN whose features are Linear → LayerNorm → tanh. The Linear is
+        NatureCNN's own, so the two draw the same initial weights from one seed."""
+
+        def __init__(self, observation_space, features_dim: int = 512,
+                     normalized_image: bool = False) -> None:
+            super().__init__(observation_space, features_dim, normalized_image)
+            self.linear = th.nn.Sequential(self.linear[0], th.nn.LayerNorm(features_dim),
+                                           th.nn.Tanh())
+
+    return LayerNormTanhCNN
 
 
 PRECISIONS = frozenset({"fp32", "bf16"})
