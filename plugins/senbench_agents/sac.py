@@ -24,7 +24,7 @@ from __future__ import annotations
 import re
 from dataclasses import field
 from functools import cache
-from typing import Annotated, ClassVar, Literal
+from typing import Annotated, ClassVar
 
 import numpy as np
 from pydantic import Field
@@ -44,6 +44,7 @@ from senbench_agents.ranges import NonNegativeInt, PositiveFloat, PositiveInt, P
 from senbench_agents.sb3 import (
     NATURE_CNN_MIN_FRAME,
     PRECISIONS,
+    FeaturesHead,
     features_extractor_class,
     is_frame_stack,
     lay_out,
@@ -83,7 +84,7 @@ class SACConfig:
     """Hidden layers of the actor and of each critic (after the CNN on pixels)."""
     features_dim: PositiveInt = 512
     """Output of each network's CNN on pixels (SB3's NatureCNN)."""
-    features_head: Literal["relu", "layernorm-tanh"] = "relu"
+    features_head: FeaturesHead = "relu"
     """The last layer of each CNN on pixels: NatureCNN's Linear → ReLU, or DrQ's Linear →
     LayerNorm → tanh."""
 
@@ -131,7 +132,7 @@ class DrQSACConfig(SACConfig):
     net_arch: Annotated[list[PositiveInt], Field(min_length=1)] = field(
         default_factory=lambda: [1024, 1024])
     features_dim: PositiveInt = 50
-    features_head: Literal["relu", "layernorm-tanh"] = "layernorm-tanh"
+    features_head: FeaturesHead = "layernorm-tanh"
     LATE_FIELDS: ClassVar[tuple[str, ...]] = ()
     """Always in the id: drq-sac's cells before the field had the ReLU head."""
     pad: Annotated[int, Field(ge=0)] | None = None

@@ -4,7 +4,7 @@ pipeline, and learning that reports through the recorder and stops at the budget
 from __future__ import annotations
 
 from functools import cache
-from typing import Any
+from typing import Any, Literal, get_args
 
 from senbench import AgentContext, Recorder
 
@@ -51,7 +51,7 @@ def learn_with_recorder(model, budget: int, recorder: Recorder) -> None:
         model.learn(total_timesteps=budget, callback=Report())
 
 
-FEATURES_HEADS = ("relu", "layernorm-tanh")
+FeaturesHead = Literal["relu", "layernorm-tanh"]
 """The last layer of an agent's CNN on pixels: SB3's NatureCNN as it is (Linear, ReLU), or
 DrQ's encoder head (Linear, LayerNorm, tanh: Kostrikov et al. 2020, its code's Encoder)."""
 
@@ -66,7 +66,7 @@ def features_extractor_class(head: str) -> type:
     if head == "relu":
         return NatureCNN
     if head != "layernorm-tanh":
-        raise ValueError(f"features_head must be one of {', '.join(FEATURES_HEADS)}, "
+        raise ValueError(f"features_head must be one of {', '.join(get_args(FeaturesHead))}, "
                          f"got {head!r}")
     return _layer_norm_tanh_cnn()
 
