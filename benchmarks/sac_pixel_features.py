@@ -23,7 +23,7 @@ import torch
 
 from senbench.plugin.manager import registries
 from senbench.run.evaluation import CellRecorder, Evaluator
-from senbench.run.execute import _seed_everything, agent_context
+from senbench.run.execute import agent_context, seed_everything
 from senbench.suite import load_suite
 
 SUITE = Path(__file__).resolve().parents[1] / "suites" / "controls-drq.yaml"
@@ -41,7 +41,7 @@ def main() -> None:
                 if c.agent == "drq-sac" and c.seed == args.seed)
     if args.head is not None:
         cell = cell.replace(hyperparams={**cell.hyperparams, "features_head": args.head})
-    _seed_everything(cell.seed)
+    seed_everything(cell.seed)
     ctx = agent_context(cell)
     agent = registries().agents.get(cell.agent).make(ctx)
     evaluate = Evaluator(ctx.make_env(), cell.eval_episodes, cell.seed)

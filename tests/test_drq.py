@@ -292,6 +292,19 @@ def test_drq_sac_networks_end_in_drq_s_head_and_sac_s_keep_nature_cnn_s():
     assert features.abs().max() < 1 and features.std(0).min() > 0
 
 
+def test_the_dqn_learners_keep_nature_cnn_s_head_unless_drq_s_is_asked_for():
+    from stable_baselines3.common.torch_layers import NatureCNN
+
+    from senbench_agents.dqn import DQNConfig
+
+    assert type(pixel_learner("drq").model.policy.q_net.features_extractor) is NatureCNN
+    assert "features_head" in DQNConfig.LATE_FIELDS  # so the cells before it keep their ids
+    drq = pixel_learner("drq", features_head="layernorm-tanh")
+    for net in (drq.model.policy.q_net, drq.model.policy.q_net_target):
+        head = [type(layer).__name__ for layer in net.features_extractor.linear]
+        assert head == ["Linear", "LayerNorm", "Tanh"]
+
+
 def test_a_features_head_drq_does_not_have_is_an_error_naming_the_heads(write_suite):
     with pytest.raises(SuiteError, match="relu.*layernorm-tanh"):
         load_suite(suite_with(write_suite, "drq-sac-pixels: {agent: drq-sac, observation: "

@@ -120,7 +120,7 @@ def execute_cell(cell: Cell, info: RunInfo, progress: ProgressCallback | None = 
             encoder = load_or_train(info.encoder_cache, request,
                                     registries()).laid_out(cell.memory_format)
         if alone:
-            _seed_everything(cell.seed)
+            seed_everything(cell.seed)
         ctx = agent_context(cell, encoder)
         agent = registries().agents.get(cell.agent).make(ctx)
         evaluator = Evaluator(ctx.make_env(), cell.eval_episodes, cell.seed, cell.eval_epsilon)
@@ -171,7 +171,9 @@ def cell_metadata(cell: Cell, info: RunInfo, status: str, error: str | None,
     }
 
 
-def _seed_everything(seed: int) -> None:
+def seed_everything(seed: int) -> None:
+    """Seed the process-wide generators (random, NumPy, torch) as a cell run alone is
+    seeded, so a benchmark that builds a cell's agent with `agent_context` replays it."""
     random.seed(seed)
     np.random.seed(seed)
     try:
