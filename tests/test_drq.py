@@ -310,3 +310,75 @@ def test_a_features_head_drq_does_not_have_is_an_error_naming_the_heads(write_su
         load_suite(suite_with(write_suite, "drq-sac-pixels: {agent: drq-sac, observation: "
                               "pixels, envs: [pendulum], hyperparams: {features_head: gelu}}"),
                    registries())
+
+
+# --- DrQ's tie: the actor reads the critic's convolutions, which only the critic trains ---
+
+def filled(learner, count: int = 20):
+    model = learner.model
+    for i in range(count):
+        model.replay_buffer.add(frames(1, i).numpy(), frames(1, i + 100).numpy(),
+                                np.array([[0.5]]), np.array([-float(i)]), np.array([False]),
+                                [{}])
+    return model
+
+
+def test_drq_sac_s_actor_reads_the_critic_s_convolutions_and_owns_only_its_head():
+    model = filled(pixel_learner("drq-sac", batch_size=4))
+    actor, critic = model.actor.features_extractor, model.critic.features_extractor
+    assert actor.cnn.convs is critic.cnn
+    owned = {id(p) for p in model.actor.parameters()}
+    optimised = {id(p) for group in model.actor.optimizer.param_groups for p in group["params"]}
+    assert owned == optimised
+    assert not owned & {id(p) for p in critic.cnn.parameters()}
+    assert {id(p) for p in actor.linear.parameters()} <= owned
+    # the target critic keeps convolutions of its own, a copy of the critic's
+    assert model.critic_target.features_extractor.cnn is not critic.cnn
+
+
+def test_the_actor_s_loss_leaves_the_convolutions_to_the_critic(monkeypatch):
+    model = filled(pixel_learner("drq-sac", batch_size=4))
+    convs = model.critic.features_extractor.cnn
+    critic_step = model.critic.optimizer.step
+    after_critic = {}
+
+    def recording_step(*args, **kwargs):  # the convolutions as the critic's update left them
+        out = critic_step(*args, **kwargs)
+        after_critic["convs"] = [p.detach().clone() for p in convs.parameters()]
+        return out
+
+    monkeypatch.setattr(model.critic.optimizer, "step", recording_step)
+    before = [p.detach().clone() for p in convs.parameters()]
+    head = [p.detach().clone() for p in model.actor.features_extractor.linear.parameters()]
+    model.train(gradient_steps=1, batch_size=4)
+    now = [p.detach() for p in convs.parameters()]
+    assert any(not torch.equal(a, b) for a, b in zip(before, now, strict=True))  # critic's
+    assert all(torch.equal(a, b) for a, b in zip(after_critic["convs"], now, strict=True))
+    assert any(not torch.equal(a, b) for a, b in zip(
+        head, model.actor.features_extractor.linear.parameters(), strict=True))
+
+
+def test_with_its_own_convolutions_the_actor_trains_them():
+    model = filled(pixel_learner("drq-sac", batch_size=4, actor_convs="own"))
+    actor_convs = model.actor.features_extractor.cnn
+    assert actor_convs is not model.critic.features_extractor.cnn
+    before = [p.detach().clone() for p in actor_convs.parameters()]
+    model.train(gradient_steps=1, batch_size=4)
+    assert any(not torch.equal(a, b) for a, b in zip(before, actor_convs.parameters(),
+                                                     strict=True))
+
+
+def test_sac_takes_drq_s_tie_on_pixels_by_default_and_keeps_old_ids_elsewhere():
+    from senbench_agents.sac import DrQSACConfig, SACConfig
+
+    assert SACConfig().actor_convs == "own" and "actor_convs" in SACConfig.LATE_FIELDS
+    assert DrQSACConfig().actor_convs == "critic"
+    sac = pixel_learner("sac", **{"actor_convs": "critic"})
+    assert sac.model.actor.features_extractor.cnn.convs is sac.model.critic.features_extractor.cnn
+
+
+def test_an_actor_convs_sac_does_not_have_is_an_error_naming_both(write_suite):
+    with pytest.raises(SuiteError, match="own.*critic"):
+        load_suite(suite_with(write_suite, "drq-sac-pixels: {agent: drq-sac, observation: "
+                              "pixels, envs: [pendulum], hyperparams: {actor_convs: both}}"),
+                   registries())

@@ -24,7 +24,7 @@ from __future__ import annotations
 import re
 from dataclasses import field
 from functools import cache
-from typing import Annotated, ClassVar
+from typing import Annotated, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field
@@ -54,6 +54,8 @@ from senbench_agents.sb3 import (
 )
 
 _ENT_COEF = re.compile(r"auto(_\d+(\.\d*)?(e-?\d+)?)?")
+
+ActorConvs = Literal["own", "critic"]
 
 
 @dataclass
@@ -87,8 +89,13 @@ class SACConfig:
     features_head: FeaturesHead = "relu"
     """The last layer of each CNN on pixels: NatureCNN's Linear → ReLU, or DrQ's Linear →
     LayerNorm → tanh."""
+    actor_convs: ActorConvs = "own"
+    """On pixels, the convolutions under the actor: its own, trained by the actor's loss
+    (SB3's SAC), or the critic's, which only the critic's loss trains: the actor's gradient
+    stops at them and its Linear head stays its own (DrQ's tie, from SAC-AE: Yarats et al.
+    2019, who found the actor's gradient through the encoder degrades learning)."""
 
-    LATE_FIELDS: ClassVar[tuple[str, ...]] = ("features_head",)
+    LATE_FIELDS: ClassVar[tuple[str, ...]] = ("features_head", "actor_convs")
 
     def __post_init__(self) -> None:
         if isinstance(self.ent_coef, str) and not _ENT_COEF.fullmatch(self.ent_coef):
@@ -101,7 +108,7 @@ class SACConfig:
 DRQ_SIZED = {"learning_rate": 1e-3, "buffer_size": 100_000, "learning_starts": 1000,
              "batch_size": 64, "tau": 0.01, "target_update_interval": 2, "train_freq": 4,
              "ent_coef": "auto_0.1", "net_arch": [1024, 1024], "features_dim": 50,
-             "features_head": "layernorm-tanh"}
+             "features_head": "layernorm-tanh", "actor_convs": "critic"}
 """DrQ's SAC (its paper and its code's config.yaml) sized to this machine: lr 1e-3, a
 100k buffer, 1,000 random frames first, critic targets at τ 0.01 every 2 updates, initial
 temperature 0.1, hidden layers of 1,024, 50 features through DrQ's encoder head (Linear →
@@ -111,10 +118,11 @@ REPRODUCTION.md, "Positive controls"). Departures, each for cost (frames/s
 from benchmarks/drq_sizing.py): batch 64 (DrQ: 512 in the paper, 128 in its code, which
 runs at 0.52x the frames/s here); one update every 4 frames (DrQ updates once per agent
 step, which at its default action repeat of 4 is the same ratio; senbench has no action
-repeat); K = M = 1 (DrQ: 2, at 0.25x the frames/s here); SB3's NatureCNN, one per
-network, each trained by its network's loss (DrQ: one 4-layer CNN shared by actor and
-critic, the actor's gradient stopped at it);
-the actor updated at every update (DrQ: every 2)."""
+repeat); K = M = 1 (DrQ: 2, at 0.25x the frames/s here); SB3's NatureCNN (DrQ: a
+4-layer CNN), its convolutions the critic's under the actor as DrQ ties them (with the
+actor's own, trained by its loss, the actor's features stopped varying over frames within
+2,000 frames on the real Pendulum scene: REPRODUCTION.md); the actor updated at every update
+(DrQ: every 2)."""
 
 
 @dataclass
@@ -133,8 +141,10 @@ class DrQSACConfig(SACConfig):
         default_factory=lambda: [1024, 1024])
     features_dim: PositiveInt = 50
     features_head: FeaturesHead = "layernorm-tanh"
+    actor_convs: ActorConvs = "critic"
     LATE_FIELDS: ClassVar[tuple[str, ...]] = ()
-    """Always in the id: drq-sac's cells before the field had the ReLU head."""
+    """Always in the id: drq-sac's cells before these fields had the ReLU head and the
+    actor's own convolutions."""
     pad: Annotated[int, Field(ge=0)] | None = None
     """Pixels a frame may shift in each direction; None: DrQ's 4 at 84x84 scaled to the
     frame (3 at 64x64). At most half the frame."""
@@ -184,6 +194,34 @@ def augmented_samples() -> type:
 
 
 @cache
+def critic_convs_policy() -> type:
+    """SB3's SAC ``CnnPolicy`` with DrQ's tie (its code's ``copy_conv_weights_from`` and
+    ``detach_encoder``): the actor's CNN keeps its own Linear head but reads the critic's
+    convolutions, without gradient, so only the critic's loss trains them. The convolutions
+    are not the actor's parameters: its optimiser leaves them to the critic's."""
+    import torch as th
+    from stable_baselines3.sac.policies import CnnPolicy
+
+    class CriticConvs(th.nn.Module):
+        def __init__(self, convs: th.nn.Module) -> None:
+            super().__init__()
+            object.__setattr__(self, "convs", convs)  # read, not owned: no submodule
+
+        def forward(self, frames: th.Tensor) -> th.Tensor:
+            with th.no_grad():
+                return self.convs(frames)
+
+    class CriticConvsPolicy(CnnPolicy):
+        def _build(self, lr_schedule) -> None:
+            super()._build(lr_schedule)
+            self.actor.features_extractor.cnn = CriticConvs(self.critic.features_extractor.cnn)
+            self.actor.optimizer = self.optimizer_class(
+                self.actor.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+
+    return CriticConvsPolicy
+
+
+@cache
 def periodic_target_sac() -> type:
     """SB3's SAC with ``target_update_interval`` counted over all the run's updates, as
     DrQ's ``critic_target_update_frequency`` is. SB3's ``SAC.train`` counts it within one
@@ -224,8 +262,11 @@ class SACAgent:
             policy_kwargs["features_extractor_class"] = features_extractor_class(
                 cfg.features_head)
             policy_kwargs["features_extractor_kwargs"] = {"features_dim": cfg.features_dim}
+        policy = "MlpPolicy"
+        if pixels:
+            policy = critic_convs_policy() if cfg.actor_convs == "critic" else "CnnPolicy"
         self.model = with_precision(periodic_target_sac(), ctx.precision)(
-            "CnnPolicy" if pixels else "MlpPolicy", venv,
+            policy, venv,
             learning_rate=cfg.learning_rate, buffer_size=cfg.buffer_size,
             learning_starts=cfg.learning_starts, batch_size=cfg.batch_size, tau=cfg.tau,
             gamma=cfg.gamma, train_freq=cfg.train_freq, gradient_steps=cfg.gradient_steps,
