@@ -98,6 +98,14 @@ def frames(count: int, seed: int) -> torch.Tensor:
                          generator=torch.Generator().manual_seed(seed))
 
 
+def filled(learner, count: int = 20):
+    model = learner.model
+    for i in range(count):
+        model.replay_buffer.add(frames(1, i).numpy(), frames(1, i + 100).numpy(),
+                                np.array([[0.5]]), np.array([float(i)]), np.array([False]), [{}])
+    return model
+
+
 def recorded_target(model, batch, monkeypatch, module, loss_name):
     targets = []
     loss = getattr(module.F, loss_name)
@@ -174,11 +182,7 @@ def test_acting_never_shifts(monkeypatch):
 
 
 def test_drq_sac_samples_m_times_k_rows_and_trains_on_them(monkeypatch):
-    learner = pixel_learner("drq-sac", k=2, m=3, batch_size=4)
-    model = learner.model
-    for i in range(20):
-        model.replay_buffer.add(frames(1, i).numpy(), frames(1, i + 100).numpy(),
-                                np.array([[0.5]]), np.array([float(i)]), np.array([False]), [{}])
+    model = filled(pixel_learner("drq-sac", k=2, m=3, batch_size=4))
     batch = model.replay_buffer.sample(4)
     assert batch.observations.shape == (24, 2, 36, 36) and batch.rewards.shape == (24, 1)
     obs = batch.observations.reshape(3, 2, 4, 2, 36, 36)
@@ -313,15 +317,6 @@ def test_a_features_head_drq_does_not_have_is_an_error_naming_the_heads(write_su
 
 
 # --- DrQ's tie: the actor reads the critic's convolutions, which only the critic trains ---
-
-def filled(learner, count: int = 20):
-    model = learner.model
-    for i in range(count):
-        model.replay_buffer.add(frames(1, i).numpy(), frames(1, i + 100).numpy(),
-                                np.array([[0.5]]), np.array([-float(i)]), np.array([False]),
-                                [{}])
-    return model
-
 
 def test_drq_sac_s_actor_reads_the_critic_s_convolutions_and_owns_only_its_head():
     model = filled(pixel_learner("drq-sac", batch_size=4))
