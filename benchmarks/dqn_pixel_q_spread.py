@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from senbench.plugin.manager import registries
-from senbench.run.execute import agent_context
+from senbench.run.execute import agent_context, seed_everything
 from senbench.run.processes import set_threads
 from senbench.suite import load_suite
 
@@ -81,6 +81,7 @@ def main() -> None:
     regs = registries()
     suite = load_suite(SUITES / f"{args.suite}.yaml", regs)
     [cell] = suite.select([args.method], [args.env], [args.seed])
+    seed_everything(cell.seed)  # as a run seeds its cell: the same initial network
     ctx = agent_context(cell)
     agent = regs.agents.get(cell.agent).make(ctx)
     frames = fixed_frames(ctx.make_env(), seed=7)
