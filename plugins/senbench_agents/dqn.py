@@ -75,6 +75,7 @@ class DQNConfig:
     episode is not bootstrapped. Off by default for that reason."""
 
     LATE_FIELDS: ClassVar[tuple[str, ...]] = ("features_head",)
+    PIXEL_FIELDS: ClassVar[tuple[str, ...]] = ("features_head",)
     """Left out of a cell's id at their defaults: added after results were committed."""
 
 

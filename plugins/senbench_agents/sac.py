@@ -96,6 +96,7 @@ class SACConfig:
     2019, who found the actor's gradient through the encoder degrades learning)."""
 
     LATE_FIELDS: ClassVar[tuple[str, ...]] = ("features_head", "actor_convs")
+    PIXEL_FIELDS: ClassVar[tuple[str, ...]] = ("features_head", "actor_convs")
 
     def __post_init__(self) -> None:
         if isinstance(self.ent_coef, str) and not _ENT_COEF.fullmatch(self.ent_coef):

@@ -194,6 +194,11 @@ def check_capabilities(agent: Any, env_name: str, env_spec: Any, observation: st
                                                       else ""), smallest, pixels,
                           ", or change its hyperparams" if configured else "", at("pixels"),
                           problem)
+    pixels_only = [f for f in getattr(agent.config, "PIXEL_FIELDS", ()) if f in (hyperparams or {})]
+    if observation != "pixels" and pixels_only:  # resolved: only a late field set off its default
+        problem(at("hyperparams"), f"agent '{agent.name}': {', '.join(pixels_only)} only "
+                f"act(s) on pixels (the CNN), and this method learns on {observation}; remove "
+                "them, or use observation: pixels")
     if encoder is None:
         return
     arch = regs.encoders.get(encoder["arch"])
