@@ -28,7 +28,7 @@ def test_a_pixel_setting_on_the_state_is_refused_at_its_line(write_suite, settin
         load_suite(write_suite(text), registries())
     message = str(err.value)
     assert "suite.yaml:5: methods.m.hyperparams" in message
-    assert f"{setting.split(':')[0]} only act(s) on pixels" in message
+    assert f"{setting.split(':')[0]} only acts on pixels" in message
     assert "learns on state" in message
 
 
@@ -37,3 +37,10 @@ def test_the_same_setting_on_pixels_and_its_default_on_the_state_are_accepted(wr
     assert load_suite(write_suite(pixels), registries()).cells
     default = SUITE.replace("OBS", "state").replace("SETTING", "actor_convs: own")
     assert load_suite(write_suite(default, "default.yaml"), registries()).cells
+
+
+def test_several_pixel_settings_are_named_together(write_suite):
+    both = "features_head: layernorm-tanh, actor_convs: critic"
+    text = SUITE.replace("OBS", "state").replace("SETTING", both)
+    with pytest.raises(SuiteError, match="features_head and actor_convs only act on pixels"):
+        load_suite(write_suite(text), registries())

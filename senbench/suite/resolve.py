@@ -196,9 +196,9 @@ def check_capabilities(agent: Any, env_name: str, env_spec: Any, observation: st
                           problem)
     pixels_only = [f for f in getattr(agent.config, "PIXEL_FIELDS", ()) if f in (hyperparams or {})]
     if observation != "pixels" and pixels_only:  # resolved: only a late field set off its default
-        problem(at("hyperparams"), f"agent '{agent.name}': {', '.join(pixels_only)} only "
-                f"act(s) on pixels (the CNN), and this method learns on {observation}; remove "
-                "them, or use observation: pixels")
+        named = " and ".join(pixels_only) + (" only act" if len(pixels_only) > 1 else " only acts")
+        problem(at("hyperparams"), f"agent '{agent.name}': {named} on pixels (the CNN), and "
+                f"this method learns on {observation}; remove it, or use observation: pixels")
     if encoder is None:
         return
     arch = regs.encoders.get(encoder["arch"])
