@@ -28,6 +28,7 @@ COMPARISONS = [  # (results folder, A, B, thresholds), as REPRODUCTION.md's comm
        f"sen-sarsa [encoder.fraction={b}]", [])
       for a, b in (("1.0", "0.2"), ("1.0", "0.5"), ("0.5", "0.2"), ("0.1", "0.2"),
                    ("0.1", "0.02"), ("0.02", "0.2"))],
+    ("paper-mountaincar-plus", "sen-sarsa", "drq-pixels-repeat", []),
     ("paper-pendulum", "sen-ppo", "ppo-state", []),
     ("paper-pendulum", "sen-ppo", "ppo-pixels", []),
     ("paper-pendulum-scaled", "sen-ppo", "ppo-pixels-scaled", []),
