@@ -5,45 +5,16 @@ import os
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import optuna
 import pytest
 import yaml
-from suites_for_tests import SEN_SARSA
+from tune_helpers import SEN, SUITE, TWO, study_of, tune
 
-from senbench.cli.views import trials_table
 from senbench.plugin.manager import registries
 from senbench.plugin.specs import Float, Int
 from senbench.suite import load_suite
 from senbench.tune import study as tuning
-from senbench.tune.export import best_block
-
-ROOT = Path(__file__).resolve().parents[1]
-
-SUITE = """\
-name: tiny
-envs:
-  mountaincar: {}
-methods:
-  sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}
-seeds: 1
-budget: 2000
-eval: {every: 1000, episodes: 1}
-"""
-
-
-def tune(tmp_path, *args):
-    env = {**os.environ, "COLUMNS": "200"}
-    return subprocess.run([sys.executable, "-m", "senbench", "tune", str(tmp_path / "s.yaml"),
-                           "--method", "sarsa-state", "--seeds", "2", "--seed", "0",
-                           "--results", str(tmp_path / "results"), *args],
-                          capture_output=True, text=True, env=env)
-
-
-def study_of(tmp_path, name="sarsa-state-mountaincar-auc"):
-    return optuna.load_study(study_name=name,
-                             storage=f"sqlite:///{tmp_path / 'results' / 'tiny' / 'tune.db'}")
 
 
 @pytest.mark.slow
@@ -276,99 +247,6 @@ def test_a_sen_trial_trains_its_encoder_on_the_tuning_seed_and_an_older_study_is
                          workers=1, regs=registries(), log=lambda message: None)
 
 
-def test_an_export_says_when_its_best_trial_tied_with_others(write_suite, tmp_path):
-    from senbench.tune.export import export_best
-
-    tgt = tuning.target(load_suite(write_suite(SUITE), registries()), "sarsa-state", None,
-                        registries())
-    study = optuna.create_study(direction="minimize")  # frames to threshold: all the budget
-    for _ in range(3):
-        trial = study.ask()
-        tuning.suggest(trial, tgt.space)
-        study.tell(trial, 2000.0)
-    export_best([(study, tgt)], tmp_path / "b.yaml", objective="steps-to-threshold", seeds=1)
-    head = (tmp_path / "b.yaml").read_text().splitlines()[:2]
-    assert head[1] == "#   tied with trials 1, 2: the study did not rank them"
-
-
-def test_a_best_defaults_trial_exports_the_methods_own_entry_unchanged(write_suite):
-    ppo = SUITE.replace("sarsa-state: {agent: sarsa, hyperparams: {tilings: 8}}",
-                        "ppo-state: {agent: ppo}").replace("mountaincar: {}", "pendulum: {}")
-    tgt = tuning.target(load_suite(write_suite(ppo, "ppo.yaml"), registries()), "ppo-state",
-                        None, registries())
-    study = optuna.create_study(direction="maximize")
-    tuning.enqueue_defaults(study, tgt, print)
-    defaults = study.ask()
-    tuning.suggest(defaults, tgt.space)
-    study.tell(defaults, -500.0)
-    other = study.ask()
-    tuning.suggest(other, tgt.space)
-    study.tell(other, -900.0)
-    # not ent_coef 1e-8 (the defaults clipped into the range): the suite's own entry, so
-    # the tuned suite's cells are the untuned one's and `run --reuse` can copy them
-    assert best_block(study, tgt) == {"ppo-state": {"agent": "ppo"}}
-    # the defaults trial ran other settings than the method has today (its agent's
-    # defaults changed since): the block spells out what the trial ran
-    changed = ppo.replace("ppo-state: {agent: ppo}",
-                          "ppo-state: {agent: ppo, hyperparams: {gae_lambda: 0.9}}")
-    today = tuning.target(load_suite(write_suite(changed, "c.yaml"), registries()),
-                          "ppo-state", None, registries())
-    assert best_block(study, today)["ppo-state"]["hyperparams"]["gae_lambda"] == 0.95
-    study.enqueue_trial({**other.params, "ent_coef": 0.01})
-    tuned = study.ask()
-    tuning.suggest(tuned, tgt.space)
-    study.tell(tuned, -100.0)
-    assert best_block(study, tgt)["ppo-state"]["hyperparams"]["ent_coef"] == 0.01
-    # a default moved into a narrowed range was not what the defaults trial ran: its block
-    # is the values the trial ran, as for any other trial
-    narrowed = ppo + "tune:\n  ppo-state:\n    learning_rate: {low: 1e-4, high: 5e-4}\n"
-    tgt = tuning.target(load_suite(write_suite(narrowed, "n.yaml"), registries()),
-                        "ppo-state", None, registries())
-    assert tuning.moved_defaults(tgt) == ["learning_rate 0.001 -> 0.0005"]
-    study = optuna.create_study(direction="maximize")
-    tuning.enqueue_defaults(study, tgt, print)
-    defaults = study.ask()
-    tuning.suggest(defaults, tgt.space)
-    study.tell(defaults, -500.0)
-    assert best_block(study, tgt)["ppo-state"]["hyperparams"]["learning_rate"] == 5e-4
-
-
-@pytest.mark.parametrize("suite_file", ["tune-paper-pendulum.yaml",
-                                        "tune-paper-pendulum-ppo.yaml",
-                                        "tune-paper-mountaincar.yaml"])
-def test_every_method_of_the_paper_tuning_suites_runs_its_own_settings_as_trial_0(
-        suite_file):
-    # a default outside its agent's space (DrQ's target copy at every update, once) or
-    # moved by a suite's tune: block would leave the defaults out of that method's study,
-    # and its "tuned" block could then lose to them
-    regs = registries()
-    suite = load_suite(ROOT / "suites" / suite_file, regs)
-    for method in suite.model.methods:
-        tgt = tuning.target(suite, method, None, regs)
-        assert tuning.default_params(tgt)[1] == [], method
-        assert tuning.moved_defaults(tgt) == [], method
-
-
-def test_every_committed_study_was_drawn_from_its_suites_space_today():
-    """A committed study can be resumed (and so re-checked) with the repository as it is:
-    growing an agent's space must leave the old suite's studies on their own space."""
-    from senbench.tune.space import check_same_space
-
-    regs = registries()
-    databases = sorted((ROOT / "results").glob("*/tune.db"))
-    checked = 0
-    for db in databases:
-        suite = load_suite(ROOT / "suites" / f"{db.parent.name}.yaml", regs)
-        url = f"sqlite:///{db}"
-        for summary in optuna.get_all_study_summaries(url):
-            study = optuna.load_study(study_name=summary.study_name, storage=url)
-            tgt = tuning.target(suite, study.user_attrs["method"], study.user_attrs["env"],
-                                regs)
-            check_same_space(study, tgt.space, summary.study_name)
-            checked += 1
-    assert checked >= 3  # the paper's Pendulum PPO studies at least
-
-
 @pytest.mark.slow
 def test_a_time_limit_stops_between_trials_and_a_rerun_goes_on(tmp_path):
     (tmp_path / "s.yaml").write_text(SUITE)
@@ -384,19 +262,6 @@ def test_a_time_limit_stops_between_trials_and_a_rerun_goes_on(tmp_path):
     done = tune(tmp_path, "--trials", "3")
     assert done.returncode == 0, done.stderr
     assert len(study_of(tmp_path).trials) == 3
-
-
-@pytest.mark.slow
-def test_tune_refuses_to_resume_a_study_over_a_changed_space_and_runs_nothing(tmp_path):
-    (tmp_path / "s.yaml").write_text(SUITE)
-    assert tune(tmp_path, "--trials", "1").returncode == 0
-    (tmp_path / "s.yaml").write_text(SUITE + "tune:\n  sarsa-state:\n"
-                                     "    alpha: {low: 0.5, high: 1.0}\n")
-    done = tune(tmp_path, "--trials", "2")
-    assert done.returncode == 2, done.stderr
-    assert "was drawn from another search space (alpha:" in done.stderr
-    assert "Traceback" not in done.stderr
-    assert len(study_of(tmp_path).trials) == 1
 
 
 def test_a_trial_fits_before_a_deadline_at_the_mean_of_the_finished_ones():
@@ -428,98 +293,6 @@ def test_a_killed_trial_is_marked_failed_by_the_next_process(tmp_path, monkeypat
     time.sleep(3)
     study.optimize(lambda trial: 0.0, n_trials=1)
     assert study.trials[0].state == optuna.trial.TrialState.FAIL
-
-
-def test_tune_refuses_what_it_cannot_tune(write_suite):
-    suite = load_suite(write_suite(SUITE.replace("tilings: 8", "tilings: 8, tiles: 6, alpha: "
-                                                 "1.0, trace_decay: 0.9")), registries())
-    with pytest.raises(Exception, match="no search space left"):
-        tuning.target(suite, "sarsa-state", None, registries())
-    with pytest.raises(Exception, match="no method 'ppo'"):
-        tuning.target(suite, "ppo", None, registries())
-
-
-def test_a_suite_narrows_the_declared_space_and_cannot_widen_it(write_suite):
-    narrowed = SUITE + "tune:\n  sarsa-state:\n    alpha: {low: 0.5, high: 1.0}\n" \
-        "    tiles: {low: 5, high: 7}\n"
-    tgt = tuning.target(load_suite(write_suite(narrowed), registries()), "sarsa-state", None,
-                        registries())
-    assert tgt.space["alpha"] == tuning.Float(0.5, 1.0, log=True)
-    assert tgt.space["tiles"] == tuning.Int(5, 7)
-    for bad, message in [("alpha: {low: 0.01}", "must lie within"),
-                         ("tilings: {values: [8]}", "fixes it in hyperparams"),
-                         ("tiles: {values: [5]}", "narrowed with 'low' and 'high'"),
-                         ("gamma: {low: 0.9}", "searches")]:
-        text = SUITE + "tune:\n  sarsa-state:\n    " + bad + "\n"
-        with pytest.raises(Exception, match=message):
-            tuning.target(load_suite(write_suite(text), registries()), "sarsa-state", None,
-                          registries())
-
-
-def test_a_study_is_not_resumed_over_another_search_space(write_suite):
-    """Trials drawn from an older space (a narrowed range, a new setting) are refused, not
-    mixed into the new study; the space a study was drawn from passes."""
-    from senbench.errors import SuiteError
-    from senbench.tune.space import check_same_space, suggest
-
-    regs = registries()
-    whole = tuning.target(load_suite(write_suite(SUITE), regs), "sarsa-state", None, regs)
-    narrowed = SUITE + "tune:\n  sarsa-state:\n    alpha: {low: 0.5, high: 1.0}\n"
-    tgt = tuning.target(load_suite(write_suite(narrowed), regs), "sarsa-state", None, regs)
-    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
-    study.optimize(lambda trial: suggest(trial, whole.space)["alpha"], n_trials=2)
-    check_same_space(study, whole.space, "s")
-    with pytest.raises(SuiteError, match=r"study 's': its trial 0 .*alpha: \[.*\] -> "
-                       r"\[0\.5, 1\.0, log\]\); .*--study NAME"):
-        check_same_space(study, tgt.space, "s")
-    grown = {**whole.space, "extra": tuning.Choice((True, False))}
-    with pytest.raises(SuiteError, match=r"extra: absent -> \[True, False\]"):
-        check_same_space(study, grown, "s")
-
-
-def test_validation_checks_the_tune_block(write_suite):
-    from senbench.errors import SuiteError
-
-    text = SUITE + "tune:\n  sarsa-statee:\n    alpha: {low: 0.5}\n  sarsa-state:\n" \
-        "    gamma: {low: 0.9}\n"
-    with pytest.raises(SuiteError) as info:
-        load_suite(write_suite(text), registries())
-    message = str(info.value)
-    assert "tune.sarsa-statee" in message and "sarsa-state" in message
-    assert "tune.sarsa-state.gamma" in message
-    assert "searches alpha, tiles, tilings, trace_decay" in message
-    # the ranges themselves, at their lines, before any tuning runs
-    text = SUITE + "tune:\n  sarsa-state:\n    alpha: {low: 0.01}\n" \
-        "    tiles: {values: [5]}\n    tilings: {low: 4}\n"
-    with pytest.raises(SuiteError) as info:
-        load_suite(write_suite(text), registries())
-    message, lines = str(info.value), len(SUITE.splitlines())
-    assert f"suite.yaml:{lines + 3}: tune.sarsa-state.alpha: [0.01, " in message
-    assert "must lie within" in message
-    assert (f"suite.yaml:{lines + 4}: tune.sarsa-state.tiles: a number is narrowed with "
-            "'low' and 'high'") in message
-    assert f"suite.yaml:{lines + 5}: tune.sarsa-state.tilings: not searched: the method " \
-        "fixes it in hyperparams" in message
-    # an encoder setting the method fixes in its encoder's config is not searched either
-    text = SEN.replace("alpha: {low: 0.3, high: 0.8}", "encoder.hidden: {values: [64]}")
-    with pytest.raises(SuiteError) as info:
-        load_suite(write_suite(text), registries())
-    assert "tune.sen-sarsa.encoder.hidden: not searched: the method fixes it in its " \
-        "encoder's config (hidden: 32)" in str(info.value)
-
-
-SEN = """\
-name: sen
-envs:
-  mountaincar: {}
-methods:
-""" + SEN_SARSA + """seeds: 1
-budget: 600
-eval: {every: 300, episodes: 1}
-tune:
-  sen-sarsa:
-    alpha: {low: 0.3, high: 0.8}
-"""
 
 
 @pytest.mark.slow
@@ -554,64 +327,6 @@ def test_an_encoder_setting_is_tuned_with_the_agent_and_exported_in_its_block(tm
 
 
 @pytest.mark.slow
-def test_a_bad_option_is_refused_before_any_storage_is_made(tmp_path):
-    (tmp_path / "s.yaml").write_text(SUITE)
-    for bad in (["--objective", "median"], ["--sampler", "grid"], ["--pruner", "asha"]):
-        done = tune(tmp_path, "--trials", "1", *bad)
-        assert done.returncode == 2 and bad[1] in done.stderr
-    assert not (tmp_path / "results").exists()
-
-
-def test_the_trials_table_lists_the_best_finished_trials_first_with_the_counts():
-    study = optuna.create_study(direction="maximize")
-    assert trials_table(study, "s", "auc") is None  # nothing finished: no table
-    for value in (-300.0, -100.0, -200.0):
-        study.enqueue_trial({"alpha": 0.5})
-        study.optimize(lambda trial, v=value: trial.suggest_float("alpha", 0, 1) and v,
-                       n_trials=1)
-    pruned = study.ask({"alpha": optuna.distributions.FloatDistribution(0, 1)})
-    study.tell(pruned, state=optuna.trial.TrialState.PRUNED)
-    table = trials_table(study, "s", "auc", top=2)
-    assert table.title == "study 's': best trials by auc; 3 complete, 1 pruned, 0 fail, 0 running"
-    assert [c.header for c in table.columns] == ["trial", "auc", "alpha"]
-    assert list(table.columns[0].cells) == ["1", "2"]  # -100 then -200; -300 is cut
-    assert list(table.columns[1].cells) == ["-100.00", "-200.00"]
-    minimize = optuna.create_study(direction="minimize")
-    minimize.add_trials(study.trials[:3])
-    assert list(trials_table(minimize, "m", "auc").columns[0].cells) == ["0", "2", "1"]
-
-
-@pytest.mark.slow
-def test_exporting_a_study_with_no_finished_trial_fails_and_writes_nothing(tmp_path):
-    (tmp_path / "s.yaml").write_text(SUITE)
-    (tmp_path / "results" / "tiny").mkdir(parents=True)
-    study = optuna.create_study(study_name="sarsa-state-mountaincar-auc", direction="maximize",
-                                storage=f"sqlite:///{tmp_path / 'results' / 'tiny' / 'tune.db'}")
-    pruned = study.ask()
-    study.tell(pruned, state=optuna.trial.TrialState.PRUNED)  # the study already holds 1
-    done = tune(tmp_path, "--trials", "1", "--export", str(tmp_path / "best.yaml"))
-    assert done.returncode == 1
-    assert "no trial finished yet ({'complete': 0, 'pruned': 1" in done.stderr
-    assert "nothing to export" in done.stderr
-    assert not (tmp_path / "best.yaml").exists()
-
-
-TWO = """\
-name: two
-envs:
-  mountaincar: {}
-  pendulum: {}
-methods:
-  sarsa-state: {agent: sarsa, envs: [mountaincar], hyperparams: {tilings: 8}}
-  sarsa-small: {agent: sarsa, envs: [mountaincar], hyperparams: {tilings: 4, tiles: 4}}
-  ppo-state: {agent: ppo}
-seeds: 1
-budget: 1000
-eval: {every: 500, episodes: 1}
-"""
-
-
-@pytest.mark.slow
 def test_every_method_is_tuned_with_the_same_budget_and_exported_together(tmp_path):
     (tmp_path / "s.yaml").write_text(TWO)
     env = {**os.environ, "COLUMNS": "200"}
@@ -631,25 +346,6 @@ def test_every_method_is_tuned_with_the_same_budget_and_exported_together(tmp_pa
     assert set(blocks) == {"sarsa-state", "sarsa-small"}
     assert blocks["sarsa-small"]["hyperparams"]["tilings"] == 4
     assert (tmp_path / "b.yaml").read_text().count("# senbench tune: study") == 2
-
-
-def test_what_a_tune_of_several_methods_refuses_before_it_runs(tmp_path):
-    (tmp_path / "s.yaml").write_text(TWO)
-    suite = load_suite(tmp_path / "s.yaml", registries())
-    regs = registries()
-    every = tuning.tune_targets(suite, None, None, regs, named_study=False, export=False)
-    assert [(t.method, t.env) for t in every] == [
-        ("sarsa-state", "mountaincar"), ("sarsa-small", "mountaincar"),
-        ("ppo-state", "mountaincar"), ("ppo-state", "pendulum")]
-    on_pendulum = tuning.tune_targets(suite, None, "pendulum", regs, named_study=False,
-                                      export=True)
-    assert [(t.method, t.env) for t in on_pendulum] == [("ppo-state", "pendulum")]
-    with pytest.raises(tuning.SuiteError, match="--study names one study"):
-        tuning.tune_targets(suite, None, None, regs, named_study=True, export=False)
-    with pytest.raises(tuning.SuiteError, match="ppo-state runs on several envs"):
-        tuning.tune_targets(suite, ["ppo-state"], None, regs, named_study=False, export=True)
-    with pytest.raises(tuning.SuiteError, match="--method sarsa: not a method"):
-        tuning.tune_targets(suite, ["sarsa"], None, regs, named_study=False, export=False)
 
 
 def test_train_return_ranks_trials_whose_evaluations_all_score_the_same(tmp_path):
