@@ -15,7 +15,7 @@ from senbench.tune import study as tuning
 @pytest.mark.parametrize("suite_file", ["tune-paper-pendulum.yaml",
                                         "tune-paper-pendulum-ppo.yaml",
                                         "tune-paper-mountaincar.yaml",
-                                        "tune-mountaincar-plus-drq.yaml"])
+                                        "tune-mountaincar-bars.yaml"])
 def test_every_method_of_the_paper_tuning_suites_runs_its_own_settings_as_trial_0(
         suite_file):
     # a default outside its agent's space (DrQ's target copy at every update, once) or
