@@ -75,8 +75,9 @@ class DQNConfig:
     episode is not bootstrapped. Off by default for that reason."""
 
     LATE_FIELDS: ClassVar[tuple[str, ...]] = ("features_head",)
-    PIXEL_FIELDS: ClassVar[tuple[str, ...]] = ("features_head",)
     """Left out of a cell's id at their defaults: added after results were committed."""
+    PIXEL_FIELDS: ClassVar[tuple[str, ...]] = ("features_head",)
+    """Act only on the CNN: validation refuses them off their default on state or encoded."""
 
 
 @cache
