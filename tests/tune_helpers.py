@@ -1,4 +1,5 @@
-"""What the tune tests share: a tiny one-method suite and a ``senbench tune`` on it."""
+"""What the tune tests share: suite texts (a tiny one-method suite, SEN-SARSA with a tune block,
+two methods over two envs) and a ``senbench tune`` on the tiny one."""
 
 import os
 import subprocess
