@@ -110,20 +110,22 @@ DRQ_SIZED = {"learning_rate": 1e-3, "buffer_size": 100_000, "learning_starts": 1
              "batch_size": 64, "tau": 0.01, "target_update_interval": 2, "train_freq": 4,
              "ent_coef": "auto_0.1", "net_arch": [1024, 1024], "features_dim": 50,
              "features_head": "layernorm-tanh", "actor_convs": "critic"}
-"""DrQ's SAC (its paper and its code's config.yaml) sized to this machine: lr 1e-3, a
-100k buffer, 1,000 random frames first, critic targets at τ 0.01 every 2 updates, initial
+"""DrQ's SAC (its paper and its code's config.yaml) sized to this machine: lr 1e-3, a buffer of
+100k transitions (DrQ's 100k are steps at its action repeat of 4, 400k frames; here, without
+action repeat, 100k frames, evicting within a 200k budget: whether that is behind the
+collapses after 100k frames on the real Pendulum scene is what suites/drq-sac-buffer.yaml
+measures), 1,000 random frames first, critic targets at τ 0.01 every 2 updates, initial
 temperature 0.1, hidden layers of 1,024, 50 features through DrQ's encoder head (Linear →
 LayerNorm → tanh; with NatureCNN's ReLU head the actor's 50 features all died within 2,000
 frames in one seed of two on the Pendulum bars, its action then the same on every frame:
-REPRODUCTION.md, "Positive controls"). Departures, each for cost (frames/s
-from benchmarks/drq_sizing.py): batch 64 (DrQ: 512 in the paper, 128 in its code, which
-runs at 0.52x the frames/s here); one update every 4 frames (DrQ updates once per agent
-step, which at its default action repeat of 4 is the same ratio; senbench has no action
-repeat); K = M = 1 (DrQ: 2, at 0.25x the frames/s here); SB3's NatureCNN (DrQ: a
-4-layer CNN), its convolutions the critic's under the actor as DrQ ties them (with the
-actor's own, trained by its loss, the actor's features stopped varying over frames within
-2,000 frames on the real Pendulum scene: REPRODUCTION.md); the actor updated at every update
-(DrQ: every 2)."""
+REPRODUCTION.md, "Positive controls"). Departures, each for cost (frames/s from
+benchmarks/drq_sizing.py): batch 64 (DrQ: 512 in the paper, 128 in its code, which runs at
+0.52x the frames/s here); one update every 4 frames (DrQ updates once per agent step, which
+at its default action repeat of 4 is the same ratio; senbench has no action repeat); K = M =
+1 (DrQ: 2, at 0.25x the frames/s here); SB3's NatureCNN (DrQ: a 4-layer CNN), its
+convolutions the critic's under the actor as DrQ ties them (with the actor's own, trained by
+its loss, the actor's features stopped varying over frames within 2,000 frames on the real
+Pendulum scene: REPRODUCTION.md); the actor updated at every update (DrQ: every 2)."""
 
 
 @dataclass
