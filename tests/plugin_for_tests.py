@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import senbench
-from senbench import AgentSpec
+from senbench import AgentSpec, Float
 
 
 @dataclass
@@ -161,7 +161,8 @@ def register_agents(register):
     register(AgentSpec("crash-seed", CrashSeedAgent, CrashSeedConfig, kinds,
                        frozenset({"encoded"}), seed_batching=True))
     register(AgentSpec("die", DieAgent, CrashConfig, kinds, frozenset({"state"})))
-    register(AgentSpec("slow", SlowAgent, SlowConfig, kinds, frozenset({"state"})))
+    register(AgentSpec("slow", SlowAgent, SlowConfig, kinds, frozenset({"state"}),
+                       search_space={"sleep_s": Float(0.001, 0.1, log=True)}))
     register(AgentSpec("exit", ExitAgent, CrashConfig, kinds, frozenset({"state"})))
     register(AgentSpec("die-times", DieTimesAgent, DieTimesConfig, kinds,
                        frozenset({"state"})))

@@ -286,15 +286,21 @@ def tune(
         err.print(f"[yellow]warning:[/] each trial runs {processes} seeds at once on "
                   f"{usable_cores()} cores (--workers caps them)")
     studies = []
+    signal.signal(signal.SIGTERM, _stop_like_ctrl_c)  # its running trial is marked failed
     for tgt in targets:  # one after another, each with the same settings
         name = study or f"{tgt.method}-{tgt.env}-{objective}"
-        done = run_study(  # the storage is opened only once all is checked
-            tgt, trials=trials, seeds=seeds, objective=objective,
-            storage=storage_for(storage, results / suite.name / "tune.db"), study_name=name,
-            sampler=sampler, seed=seed, pruner=make_pruner(pruner, tgt),
-            results_root=results, workers=processes, regs=regs,
-            log=lambda message: err.print(escape(message), highlight=False),
-            deadline=deadline)
+        try:
+            done = run_study(  # the storage is opened only once all is checked
+                tgt, trials=trials, seeds=seeds, objective=objective,
+                storage=storage_for(storage, results / suite.name / "tune.db"),
+                study_name=name, sampler=sampler, seed=seed, pruner=make_pruner(pruner, tgt),
+                results_root=results, workers=processes, regs=regs,
+                log=lambda message: err.print(escape(message), highlight=False),
+                deadline=deadline)
+        except KeyboardInterrupt:
+            err.print(f"interrupted: study '{name}' keeps its finished trials; run the same "
+                      "command again to go on")
+            raise typer.Exit(130) from None
         studies.append((name, done, tgt))
         table = trials_table(done, name, objective)
         if table is None:

@@ -17,7 +17,9 @@ The study lives in Optuna storage: by default a SQLite file, ``results/<suite>/t
 Running the command again resumes the study (``--trials`` is the total to reach, counting
 finished and pruned trials), and several processes on one storage share it. On an RDB
 storage (SQLite included) each running trial sends a heartbeat; a trial whose process was
-killed is marked failed by the next process that starts, instead of staying RUNNING.
+killed is marked failed by the next process that starts, instead of staying RUNNING. A trial
+stopped by Ctrl-C (or SIGTERM, which ``senbench tune`` turns into one) is marked failed at
+once.
 """
 
 from __future__ import annotations
@@ -272,6 +274,16 @@ def run_study(tgt: Target, *, trials: int, seeds: int, objective: str, storage: 
     counted = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
 
     def run_trial(trial: optuna.Trial) -> float:
+        try:
+            return trial_value(trial)
+        except KeyboardInterrupt:  # Ctrl-C, or SIGTERM as senbench tune handles it
+            # Optuna marks the trial failed and logs that with the interrupt's traceback;
+            # one line says it instead
+            optuna.logging.set_verbosity(optuna.logging.ERROR)
+            log(f"trial {trial.number}: stopped, marked failed")
+            raise
+
+    def trial_value(trial: optuna.Trial) -> float:
         trial.set_user_attr("host", platform.node())
         trial.set_user_attr("pid", os.getpid())
         params = suggest(trial, tgt.space)
