@@ -39,6 +39,7 @@ COMPARISONS = [  # (results folder, A, B, thresholds), as REPRODUCTION.md's comm
     ("paper-pendulum-tuned", "sen-ppo", "ppo-state", []),
     ("paper-pendulum-tuned", "sen-ppo", "ppo-pixels", []),
     ("paper-pendulum-plus", "sen-sac", "drq-sac-pixels", []),
+    ("drq-sac-buffer", "drq-sac-pixels-buffer-200k", "drq-sac-pixels-buffer-100k", []),
 ]
 
 
