@@ -1,7 +1,6 @@
 """``senbench run --executor ray``: cells as Ray tasks on a local instance of 2 CPUs."""
 
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -11,6 +10,7 @@ from pathlib import Path
 import pandas as pd
 import psutil
 import pytest
+from stopping import start_as_from_a_terminal, stop, wait_for_files
 from suites_for_tests import SEN_SARSA, SLOW
 
 from senbench.cli.progress import GridProgress
@@ -88,25 +88,17 @@ def test_a_grid_on_ray_matches_the_serial_run_cell_for_cell_and_resumes(tmp_path
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("stop", ["ctrl-c", "sigterm"])
+@pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
 def test_stopping_a_ray_run_stops_its_tasks_leaving_only_finished_cells(tmp_path, cli_env,
-                                                                          stop):
+                                                                          how):
     (tmp_path / "slow.yaml").write_text(SLOW.replace("sleep_s: 0.002", "sleep_s: 0.004"))
     cells = tmp_path / "results" / "slow" / "cells"
     command = [sys.executable, "-m", "senbench", "run", str(tmp_path / "slow.yaml"),
                "--executor", "ray", "--workers", "2", "--results", str(tmp_path / "results")]
-    process = subprocess.Popen(command, env=cli_env, start_new_session=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    deadline = time.time() + 120
-    while not list(cells.glob("*.parquet")):
-        assert process.poll() is None and time.time() < deadline, process.communicate()
-        time.sleep(0.05)
+    process = start_as_from_a_terminal(command, cli_env)
+    wait_for_files(cells, 1, process, timeout=120)
     ray_processes = psutil.Process(process.pid).children(recursive=True)
-    if stop == "ctrl-c":
-        os.killpg(process.pid, signal.SIGINT)  # what Ctrl-C sends to the foreground group
-    else:
-        process.terminate()  # what a batch scheduler sends, to the runner only
+    stop(process, how)
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, stdout + stderr
     assert "run the same command again to resume" in stderr, stderr

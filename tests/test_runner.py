@@ -1,9 +1,6 @@
-import os
 import re
-import signal
 import subprocess
 import sys
-import time
 from datetime import UTC, datetime
 
 import plugin_for_tests
@@ -11,6 +8,7 @@ import psutil
 import pyarrow.parquet as pq
 import pytest
 from curves import curves_of
+from stopping import start_as_from_a_terminal, stop, wait_for_files
 from suites_for_tests import SARSA, SLOW
 
 from senbench.errors import SenbenchError
@@ -174,16 +172,6 @@ def test_a_lost_worker_is_judged_by_what_it_wrote_since_it_started(write_suite, 
     assert started <= seen[0] <= datetime.now(UTC)
 
 
-def _wait_for_files(directory, count, process, timeout=90):
-    deadline = time.time() + timeout
-    while time.time() < deadline:
-        if len(list(directory.glob("*.parquet"))) >= count:
-            return
-        assert process.poll() is None, process.communicate()
-        time.sleep(0.05)
-    pytest.fail(f"no {count} result files after {timeout} s")
-
-
 @pytest.mark.slow
 def test_sigkill_then_rerun_gives_every_cell_exactly_once(write_suite, tmp_path, cli_env):
     suite_file = write_suite(SLOW)
@@ -193,7 +181,7 @@ def test_sigkill_then_rerun_gives_every_cell_exactly_once(write_suite, tmp_path,
     process = subprocess.Popen(command, env=cli_env, start_new_session=True,
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     cells = results / "slow" / "cells"
-    _wait_for_files(cells, 2, process)
+    wait_for_files(cells, 2, process)
     workers = psutil.Process(process.pid).children(recursive=True)
     process.kill()  # the runner only: its workers notice and stop by themselves
     process.wait()
@@ -212,22 +200,16 @@ def test_sigkill_then_rerun_gives_every_cell_exactly_once(write_suite, tmp_path,
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("stop", ["ctrl-c", "sigterm"])
-def test_ctrl_c_stops_cleanly_leaving_only_finished_cells(write_suite, tmp_path, cli_env, stop):
+@pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
+def test_ctrl_c_stops_cleanly_leaving_only_finished_cells(write_suite, tmp_path, cli_env, how):
     suite_file = write_suite(SLOW.replace("sleep_s: 0.002", "sleep_s: 0.004"))
     results = tmp_path / "results"
     command = [sys.executable, "-m", "senbench", "run", str(suite_file), "--workers", "2",
                "--results", str(results)]
-    # As from a terminal: a shell's background job (CI's, say) starts with SIGINT ignored.
-    process = subprocess.Popen(command, env=cli_env, start_new_session=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    process = start_as_from_a_terminal(command, cli_env)
     cells = results / "slow" / "cells"
-    _wait_for_files(cells, 1, process)
-    if stop == "ctrl-c":
-        os.killpg(process.pid, signal.SIGINT)  # what Ctrl-C sends to the foreground group
-    else:
-        process.terminate()  # what a batch scheduler sends, to the runner only
+    wait_for_files(cells, 1, process)
+    stop(process, how)
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, stdout + stderr
     assert "Traceback" not in stderr and "run the same command again to resume" in stderr, stderr

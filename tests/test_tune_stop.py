@@ -2,14 +2,12 @@
 the running trial is marked failed at once, not left RUNNING until the next process starts,
 and the command says how to go on."""
 
-import os
-import signal
-import subprocess
 import sys
 import time
 
 import optuna
 import pytest
+from stopping import start_as_from_a_terminal, stop, wait_for_files
 
 SLOW_TUNE = """\
 name: slow
@@ -27,26 +25,17 @@ tune:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("stop", ["ctrl-c", "sigterm"])
-def test_a_stopped_study_fails_its_running_trial_at_once(write_suite, tmp_path, cli_env, stop):
+@pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
+def test_a_stopped_study_fails_its_running_trial_at_once(write_suite, tmp_path, cli_env, how):
     suite_file = write_suite(SLOW_TUNE)
     results = tmp_path / "results"
     command = [sys.executable, "-m", "senbench", "tune", str(suite_file), "--trials", "2",
                "--seeds", "2", "--workers", "1", "--results", str(results)]
-    process = subprocess.Popen(command, env=cli_env, start_new_session=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    process = start_as_from_a_terminal(command, cli_env)
     trial = results / "slow" / "tune" / "slow-state-mountaincar-auc" / "trial-0" / "cells"
-    deadline = time.time() + 90
-    while not list(trial.glob("*.parquet")):  # its first seed has finished, the second runs
-        assert process.poll() is None, process.communicate()
-        assert time.time() < deadline, "the trial's first seed did not finish"
-        time.sleep(0.05)
+    wait_for_files(trial, 1, process)  # its first seed has finished, the second runs
     time.sleep(0.5)
-    if stop == "ctrl-c":
-        os.killpg(process.pid, signal.SIGINT)
-    else:
-        process.terminate()
+    stop(process, how)
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, stdout + stderr
     assert "Traceback" not in stderr and "run the same command again" in stderr, stderr

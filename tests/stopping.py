@@ -1,0 +1,38 @@
+"""What the tests that stop a running ``senbench`` command share: start it as from a
+terminal, wait until its cells have written result files, and stop it as Ctrl-C or a batch
+scheduler would."""
+
+import os
+import signal
+import subprocess
+import time
+
+import pytest
+
+
+def start_as_from_a_terminal(command, env):
+    """The command in a process group of its own, SIGINT handled as usual (a shell's
+    background job, CI's say, starts with SIGINT ignored)."""
+    return subprocess.Popen(command, env=env, start_new_session=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+def wait_for_files(directory, count, process, timeout=90):
+    """Until ``directory`` holds ``count`` result files; the process must not end first."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if len(list(directory.glob("*.parquet"))) >= count:
+            return
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.05)
+    pytest.fail(f"no {count} result files after {timeout} s")
+
+
+def stop(process, how):
+    """``ctrl-c``: SIGINT to the foreground group, as a terminal sends it; ``sigterm``: to the
+    command only, as a batch scheduler sends it."""
+    if how == "ctrl-c":
+        os.killpg(process.pid, signal.SIGINT)
+    else:
+        process.terminate()
