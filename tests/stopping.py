@@ -7,6 +7,7 @@ import signal
 import subprocess
 import time
 
+import psutil
 import pytest
 
 
@@ -36,3 +37,18 @@ def stop(process, how):
         os.killpg(process.pid, signal.SIGINT)
     else:
         process.terminate()
+
+
+def wait_for_fork_server(process, timeout=30):
+    """The command's multiprocessing fork server, once it has been started."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        for child in psutil.Process(process.pid).children(recursive=True):
+            try:
+                if "multiprocessing.forkserver" in " ".join(child.cmdline()):
+                    return child
+            except psutil.Error:
+                continue
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.01)
+    pytest.fail(f"no fork server after {timeout} s")

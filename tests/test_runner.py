@@ -1,6 +1,7 @@
 import re
 import subprocess
 import sys
+import time
 from datetime import UTC, datetime
 
 import plugin_for_tests
@@ -8,7 +9,7 @@ import psutil
 import pyarrow.parquet as pq
 import pytest
 from curves import curves_of
-from stopping import start_as_from_a_terminal, stop, wait_for_files
+from stopping import start_as_from_a_terminal, stop, wait_for_files, wait_for_fork_server
 from suites_for_tests import SARSA, SLOW
 
 from senbench.errors import SenbenchError
@@ -217,6 +218,23 @@ def test_ctrl_c_stops_cleanly_leaving_only_finished_cells(write_suite, tmp_path,
     assert 1 <= len(files) < 6
     assert all(finished_status(f) == "ok" for f in files)
     assert not list(cells.glob(".*.tmp"))
+
+
+def test_ctrl_c_while_the_fork_server_starts_prints_no_traceback(write_suite, tmp_path,
+                                                                   cli_env):
+    """The fork server imports torch for its first second or two; a Ctrl-C to the terminal's
+    process group then printed the server's own KeyboardInterrupt traceback under the
+    runner's clean stop."""
+    command = [sys.executable, "-m", "senbench", "run", str(write_suite(SLOW)), "--workers",
+               "2", "--results", str(tmp_path / "results")]
+    process = start_as_from_a_terminal(command, cli_env)
+    server = wait_for_fork_server(process)
+    time.sleep(0.3)  # into its imports: torch alone takes longer
+    assert server.is_running()
+    stop(process, "ctrl-c")
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stdout + stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
 
 
 @pytest.mark.slow

@@ -73,7 +73,24 @@ def _context() -> Any:
     modules = [__name__, "senbench.run.execute", "torch"]
     modules += plugins.entry_point_modules()  # not a broken one: it would stop the server
     context.set_forkserver_preload(modules)
+    _start_server_deaf_to_ctrl_c()
     return context
+
+
+def _start_server_deaf_to_ctrl_c() -> None:
+    """Start the fork server with SIGINT blocked, as multiprocessing starts its resource
+    tracker: a Ctrl-C to the terminal's process group reaches the server too, and in its
+    first second (before it ignores SIGINT itself) printed its own KeyboardInterrupt
+    traceback under the runner's clean stop. Its cells ignore SIGINT anyway; a Ctrl-C
+    during the spawn reaches the runner once the mask is restored."""
+    from multiprocessing import forkserver, resource_tracker
+
+    resource_tracker.ensure_running()  # first: starting it unblocks SIGINT
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _cell_process(cells: list[Cell], directory: Path, info: RunInfo, events: Any,
