@@ -19,15 +19,21 @@ def start_as_from_a_terminal(command, env):
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
-def wait_for_files(directory, count, process, timeout=90):
-    """Until ``directory`` holds ``count`` result files; the process must not end first."""
+def wait_until(found, process, timeout, what):
+    """``found()``'s first truthy value, polled; the process must not end first."""
     deadline = time.time() + timeout
     while time.time() < deadline:
-        if len(list(directory.glob("*.parquet"))) >= count:
-            return
+        if result := found():
+            return result
         assert process.poll() is None, process.communicate()
-        time.sleep(0.05)
-    pytest.fail(f"no {count} result files after {timeout} s")
+        time.sleep(0.02)
+    pytest.fail(f"{what} after {timeout} s")
+
+
+def wait_for_files(directory, count, process, timeout=90):
+    """Until ``directory`` holds ``count`` result files; the process must not end first."""
+    wait_until(lambda: len(list(directory.glob("*.parquet"))) >= count, process, timeout,
+               f"no {count} result files")
 
 
 def stop(process, how):
@@ -41,14 +47,14 @@ def stop(process, how):
 
 def wait_for_fork_server(process, timeout=30):
     """The command's multiprocessing fork server, once it has been started."""
-    deadline = time.time() + timeout
-    while time.time() < deadline:
+
+    def server():
         for child in psutil.Process(process.pid).children(recursive=True):
             try:
                 if "multiprocessing.forkserver" in " ".join(child.cmdline()):
                     return child
             except psutil.Error:
                 continue
-        assert process.poll() is None, process.communicate()
-        time.sleep(0.01)
-    pytest.fail(f"no fork server after {timeout} s")
+        return None
+
+    return wait_until(server, process, timeout, "no fork server")

@@ -114,7 +114,7 @@ DRQ_SIZED = {"learning_rate": 1e-3, "buffer_size": 200_000, "learning_starts": 1
 200k transitions (DrQ's 100k are steps at its action repeat of 4, 400k frames, so it hardly
 evicts within its runs; here, without action repeat, 100k would hold 100k frames and evict
 within the 200k budget of the Pendulum suites: with it each of 3 seeds collapsed once after
-100k frames on the real Pendulum scene, and with 200k seeds 0 and 1 did not,
+100k frames on the real Pendulum scene, and with 200k seeds 0, 1 and 2 did not,
 suites/drq-sac-buffer.yaml; 200k holds the whole budget, as DrQ's holds its runs, and a
 larger one gives the same curves there, as SB3 samples only what it has filled), 1,000
 random frames first, critic targets at τ 0.01 every 2 updates, initial
