@@ -133,21 +133,21 @@ Pendulum scene: REPRODUCTION.md); the actor updated at every update (DrQ: every 
 
 @dataclass
 class DrQSACConfig(SACConfig):
-    """Defaults: :data:`DRQ_SIZED`."""
+    """Defaults: :data:`DRQ_SIZED`, each read from it (the values are written once)."""
 
-    learning_rate: PositiveFloat = 1e-3
-    buffer_size: PositiveInt = 200_000
-    learning_starts: NonNegativeInt = 1000
-    batch_size: PositiveInt = 64
-    tau: Probability = 0.01
-    target_update_interval: PositiveInt = 2
-    train_freq: PositiveInt = 4
-    ent_coef: float | str = "auto_0.1"
+    learning_rate: PositiveFloat = DRQ_SIZED["learning_rate"]
+    buffer_size: PositiveInt = DRQ_SIZED["buffer_size"]
+    learning_starts: NonNegativeInt = DRQ_SIZED["learning_starts"]
+    batch_size: PositiveInt = DRQ_SIZED["batch_size"]
+    tau: Probability = DRQ_SIZED["tau"]
+    target_update_interval: PositiveInt = DRQ_SIZED["target_update_interval"]
+    train_freq: PositiveInt = DRQ_SIZED["train_freq"]
+    ent_coef: float | str = DRQ_SIZED["ent_coef"]
     net_arch: Annotated[list[PositiveInt], Field(min_length=1)] = field(
-        default_factory=lambda: [1024, 1024])
-    features_dim: PositiveInt = 50
-    features_head: FeaturesHead = "layernorm-tanh"
-    actor_convs: ActorConvs = "critic"
+        default_factory=lambda: list(DRQ_SIZED["net_arch"]))
+    features_dim: PositiveInt = DRQ_SIZED["features_dim"]
+    features_head: FeaturesHead = DRQ_SIZED["features_head"]
+    actor_convs: ActorConvs = DRQ_SIZED["actor_convs"]
     LATE_FIELDS: ClassVar[tuple[str, ...]] = ()
     """Always in the id: drq-sac's cells before these fields had the ReLU head and the
     actor's own convolutions."""
