@@ -27,6 +27,7 @@ LEARNERS = [  # (agent, observation, env, frames timed)
     ("drq", "pixels", "mountaincar", 600),
     ("ppo", "pixels", "pendulum", 1_028),
     ("sac", "pixels", "pendulum", 200),
+    ("drq-sac", "pixels", "pendulum", 200),
 ]
 
 

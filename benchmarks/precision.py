@@ -18,6 +18,7 @@ LEARNERS = [  # (agent, observation, env, frames timed)
     ("drq", "pixels", "mountaincar", 1_000),
     ("ppo", "pixels", "pendulum", 1_028),
     ("sac", "state", "pendulum", 500),
+    ("sac", "pixels", "pendulum", 200),
     ("drq-sac", "pixels", "pendulum", 200),
 ]
 

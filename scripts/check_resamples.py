@@ -39,6 +39,8 @@ COMPARISONS = [  # (results folder, A, B, thresholds), as REPRODUCTION.md's comm
     ("paper-pendulum-tuned", "sen-ppo", "ppo-state", []),
     ("paper-pendulum-tuned", "sen-ppo", "ppo-pixels", []),
     ("paper-pendulum-plus", "sen-sac", "drq-sac-pixels", []),
+    ("paper-pendulum-plus", "sen-sac", "sac-pixels", []),
+    ("paper-pendulum-plus", "drq-sac-pixels", "sac-pixels", []),
     ("drq-sac-buffer", "drq-sac-pixels-buffer-200k", "drq-sac-pixels-buffer-100k", []),
 ]
 
