@@ -45,18 +45,17 @@ def main() -> None:
     parser.add_argument("--learner", action="append", default=[], metavar="AGENT/OBSERVATION",
                         help="time only these (repeatable), e.g. sac/pixels")
     args = parser.parse_args()
-    known = [f"{agent}/{observation}" for agent, observation, _, _ in LEARNERS]
+    known = {f"{row[0]}/{row[1]}": row for row in LEARNERS}  # agent/observation: its row
     unknown = [name for name in args.learner if name not in known]
     if args.repeats < 1:
         parser.error(f"--repeats must be at least 1 (got {args.repeats})")
     if unknown:
         parser.error(f"--learner {unknown[0]}: not timed here; use one of {', '.join(known)}")
+    chosen = [row for name, row in known.items() if not args.learner or name in args.learner]
     set_threads(1)
     print(f"{'agent':8s} {'observation':11s} {'fp32 f/s':>9s} {'bf16 f/s':>9s} "
-          f"{'bf16/fp32':>9s} {'turns':>11s}")
-    for agent, observation, env, frames in LEARNERS:
-        if args.learner and f"{agent}/{observation}" not in args.learner:
-            continue
+          f"{'bf16/fp32':>9s} {'turns':>10s}")
+    for agent, observation, env, frames in chosen:
         turns = [(frames_per_second(agent, observation, env, frames, "fp32"),
                   frames_per_second(agent, observation, env, frames, "bf16"))
                  for _ in range(args.repeats)]
